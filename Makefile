@@ -1,0 +1,52 @@
+# make test | make bench | make report | make microbench — each sets itself up on a clean
+# Debian 12 machine (as root): Debian packages, then .venv with the project and dev extras.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMPS := .make
+DEBS := libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 chromium chromium-driver
+OUT ?= results/bench
+EXPERIMENT ?= experiments/default.yaml
+export PYOPENGL_PLATFORM ?= osmesa
+
+.PHONY: setup test bench report microbench microbench-compare reproduce lint clean
+
+setup: $(STAMPS)/venv
+
+$(STAMPS)/debs:
+	@mkdir -p $(STAMPS)
+	@missing=$$(for p in $(DEBS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:" $$missing; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	fi
+	@touch $@
+
+$(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
+	@test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	@touch $@
+
+test: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	$(VENV)/bin/shadowbench run $(EXPERIMENT) --out $(OUT)
+	$(VENV)/bin/shadowbench report $(OUT)
+
+report: setup
+	$(VENV)/bin/shadowbench report $(OUT)
+
+microbench: setup
+	$(PY) -m pytest -q tests/benchmarks --benchmark-only --benchmark-autosave -p no:randomly
+
+microbench-compare: setup
+	$(PY) -m pytest -q tests/benchmarks --benchmark-only --benchmark-compare --benchmark-autosave
+
+lint: setup
+	$(VENV)/bin/ruff check harness techniques tests
+
+clean:
+	rm -rf $(VENV) $(STAMPS) .pytest_cache

@@ -1,0 +1,339 @@
+"""The scene file and experiment schema, validated at load.
+
+Every problem is a :class:`ConfigError` whose one-line message names the file, the key path
+and (where the YAML has it) the line, e.g.
+``scenes.yaml:12: scenes.box_plane.camera.yfov: must be in (0, 180), got 190``.
+Unknown keys are errors, never silently ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+
+
+class ConfigError(Exception):
+    """Bad input: the message is one line naming file, key path and, where known, line."""
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _norm(v) -> float:
+    return float(np.linalg.norm(np.asarray(v, dtype=float)))
+
+
+class Camera(Strict):
+    position: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 0.0, 1.0)
+    yfov: float = 60.0
+    near: float = 0.1
+    far: float = 100.0
+
+    @field_validator("yfov")
+    @classmethod
+    def _fov(cls, v):
+        if not 0 < v < 180:
+            raise ValueError(f"must be in (0, 180), got {v}")
+        return v
+
+    @field_validator("near")
+    @classmethod
+    def _near(cls, v):
+        if v <= 0:
+            raise ValueError(f"must be > 0, got {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        if self.far <= self.near:
+            raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
+        view = np.subtract(self.target, self.position)
+        if _norm(view) == 0:
+            raise ValueError("target equals position")
+        if _norm(self.up) == 0:
+            raise ValueError("up is the zero vector")
+        if _norm(np.cross(view / _norm(view), np.asarray(self.up) / _norm(self.up))) < 1e-6:
+            raise ValueError("up is parallel to the view direction")
+        return self
+
+
+class DirectionalLight(Strict):
+    type: Literal["directional"]
+    direction: Vec3  # the direction light travels
+
+    @field_validator("direction")
+    @classmethod
+    def _nonzero(cls, v):
+        if _norm(v) == 0:
+            raise ValueError("must not be the zero vector")
+        return v
+
+
+class SpotLight(Strict):
+    type: Literal["spot"]
+    position: Vec3
+    target: Vec3
+    fov: float = 60.0  # full cone angle in degrees
+
+    @field_validator("fov")
+    @classmethod
+    def _fov(cls, v):
+        if not 0 < v < 180:
+            raise ValueError(f"must be in (0, 180), got {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _aim(self):
+        if _norm(np.subtract(self.target, self.position)) == 0:
+            raise ValueError("target equals position")
+        return self
+
+
+Light = Annotated[Union[DirectionalLight, SpotLight], Field(discriminator="type")]
+
+
+class Array(Strict):
+    """Copies of an object on a grid: ``count`` along x, y, z, ``step`` apart."""
+
+    count: tuple[int, int, int] = (1, 1, 1)
+    step: Vec3 = (0.0, 0.0, 0.0)
+
+    @field_validator("count")
+    @classmethod
+    def _count(cls, v):
+        if min(v) < 1 or math.prod(v) > 10000:
+            raise ValueError(f"each count must be >= 1 and their product <= 10000, got {v}")
+        return v
+
+
+class Placed(Strict):
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
+    scale: Union[float, Vec3] = 1.0
+    array: Array | None = None
+    albedo: float = Field(0.8, ge=0, le=1)
+
+
+def _positive(name: str, values):
+    if any(v <= 0 for v in np.atleast_1d(values)):
+        raise ValueError(f"{name} must be > 0, got {values}")
+    return values
+
+
+class Plane(Placed):
+    shape: Literal["plane"]
+    size: tuple[float, float] = (10.0, 10.0)
+    _v = field_validator("size")(lambda cls, v: _positive("size", v))
+
+
+class Box(Placed):
+    shape: Literal["box"]
+    size: Vec3 = (1.0, 1.0, 1.0)
+    _v = field_validator("size")(lambda cls, v: _positive("size", v))
+
+
+class Sphere(Placed):
+    shape: Literal["sphere"]
+    radius: float = 1.0
+    subdivisions: int = Field(3, ge=1, le=5)
+    _v = field_validator("radius")(lambda cls, v: _positive("radius", v))
+
+
+class Cylinder(Placed):
+    shape: Literal["cylinder"]
+    radius: float = 0.5
+    height: float = 1.0
+    sections: int = Field(32, ge=3, le=256)
+
+    @model_validator(mode="after")
+    def _dims(self):
+        _positive("radius and height", (self.radius, self.height))
+        return self
+
+
+class Capsule(Placed):
+    shape: Literal["capsule"]
+    radius: float = 0.25
+    height: float = 1.0  # between the centres of the two caps
+    sections: int = Field(16, ge=3, le=128)
+
+    @model_validator(mode="after")
+    def _dims(self):
+        _positive("radius and height", (self.radius, self.height))
+        return self
+
+
+class Lathe(Placed):
+    """A solid of revolution about +z from a profile of (radius, z) points, bottom to top."""
+
+    shape: Literal["lathe"]
+    profile: list[tuple[float, float]]
+    sections: int = Field(24, ge=3, le=256)
+
+    @field_validator("profile")
+    @classmethod
+    def _profile(cls, v):
+        if len(v) < 2:
+            raise ValueError("needs at least two (radius, z) points")
+        if any(r < 0 for r, _ in v):
+            raise ValueError("radii must be >= 0")
+        return v
+
+
+class MeshFile(Placed):
+    shape: Literal["mesh"]
+    path: str
+
+
+SceneObject = Annotated[
+    Union[Plane, Box, Sphere, Cylinder, Capsule, Lathe, MeshFile], Field(discriminator="shape")
+]
+
+
+class Scene(Strict):
+    resolution: tuple[int, int] = (512, 512)
+    camera: Camera
+    light: Light
+    effects: list[Literal["shadow", "direct"]] = ["shadow"]
+    ambient: float = Field(0.1, ge=0, le=1)
+    objects: list[SceneObject]
+
+    @field_validator("resolution")
+    @classmethod
+    def _res(cls, v):
+        if not all(16 <= x <= 8192 for x in v):
+            raise ValueError(f"width and height must be in [16, 8192], got {list(v)}")
+        return v
+
+    @field_validator("effects")
+    @classmethod
+    def _effects(cls, v):
+        if "shadow" not in v:
+            raise ValueError("must include 'shadow'")
+        return v
+
+    @field_validator("objects")
+    @classmethod
+    def _objects(cls, v):
+        if not v:
+            raise ValueError("must list at least one object")
+        return v
+
+
+class SceneFile(Strict):
+    scenes: dict[str, Scene]
+
+
+def _line_of(node, path: tuple) -> int | None:
+    """Line (1-based) of the deepest YAML node reachable along a pydantic error location."""
+    line = None
+    for key in path:
+        if node is None:
+            break
+        line = node.start_mark.line + 1
+        if isinstance(node, yaml.MappingNode):
+            node = next((v for k, v in node.value if k.value == str(key)), None)
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+        elif isinstance(node, yaml.SequenceNode):
+            continue  # a discriminator tag in the location, not a YAML key
+        else:
+            node = None
+    if node is not None:
+        line = node.start_mark.line + 1
+    return line
+
+
+def _clean_loc(loc: tuple) -> tuple:
+    """Drop pydantic's union/discriminator tags (e.g. 'box', 'function-after[...]') from a path."""
+    out = []
+    for part in loc:
+        if isinstance(part, str) and ("[" in part or part in _TAGS):
+            continue
+        out.append(part)
+    return tuple(out)
+
+
+_TAGS = {
+    "plane", "box", "sphere", "cylinder", "capsule", "lathe", "mesh", "directional", "spot",
+}
+
+
+def format_validation_error(path: Path, err: ValidationError, root_node, prefix=()) -> str:
+    first = err.errors()[0]
+    loc = prefix + _clean_loc(tuple(first["loc"]))
+    msg = first["msg"].removeprefix("Value error, ")
+    if first["type"] == "extra_forbidden":
+        msg = "unknown key"
+    elif first["type"] == "missing":
+        msg = "required key is missing"
+    keypath = ".".join(str(p) for p in loc)
+    line = _line_of(root_node, loc)
+    where = f"{path}:{line}" if line else str(path)
+    more = len(err.errors()) - 1
+    return f"{where}: {keypath}: {msg}" + (f" (and {more} more)" if more else "")
+
+
+def read_yaml(path: Path):
+    """Parse a YAML file; return (data, root node). Errors are ConfigErrors."""
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read: {e.strerror}") from None
+    try:
+        node = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        line = f":{mark.line + 1}" if mark else ""
+        raise ConfigError(f"{path}{line}: not valid YAML: {getattr(e, 'problem', e)}") from None
+    return data, node
+
+
+def load_scenes(path: str | Path) -> dict[str, Scene]:
+    """Load and validate a scene file; mesh paths are resolved against the file's folder."""
+    path = Path(path)
+    data, node = read_yaml(path)
+    try:
+        scene_file = SceneFile.model_validate(data)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(path, e, node)) from None
+    for name, scene in scene_file.scenes.items():
+        for i, obj in enumerate(scene.objects):
+            if isinstance(obj, MeshFile):
+                _check_mesh(path, node, name, i, obj)
+    return scene_file.scenes
+
+
+def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
+    p = Path(obj.path)
+    return p if p.is_absolute() else Path(scene_path).parent / p
+
+
+def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile):
+    import trimesh
+
+    loc = ("scenes", scene_name, "objects", index, "path")
+    line = _line_of(node, loc)
+    where = f"{path}:{line}" if line else str(path)
+    mesh_path = resolve_mesh_path(path, obj)
+    if not mesh_path.is_file():
+        raise ConfigError(f"{where}: {'.'.join(map(str, loc))}: no such file: {mesh_path}")
+    try:
+        mesh = trimesh.load(mesh_path, force="mesh")
+        if len(mesh.faces) == 0:
+            raise ValueError("no triangles")
+    except Exception as e:  # trimesh raises many kinds for a bad file
+        raise ConfigError(
+            f"{where}: {'.'.join(map(str, loc))}: cannot load mesh {mesh_path}: {e}"
+        ) from None

@@ -1,0 +1,58 @@
+"""The shared camera pass: world position, flat normal, albedo, depth and coverage per pixel."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from OpenGL import GL
+
+from .gl.framebuffer import Framebuffer
+from .gl.shaders import HARNESS_GLSL, Program
+
+
+@dataclass
+class GBufferArrays:
+    position: np.ndarray  # (H, W, 3) float32 world position
+    normal: np.ndarray  # (H, W, 3) float32 flat normal
+    albedo: np.ndarray  # (H, W) float32
+    covered: np.ndarray  # (H, W) bool
+
+
+class GBuffer:
+    """Renders the camera view once; techniques read it as textures, metrics as arrays."""
+
+    def __init__(self, width: int, height: int):
+        self.fbo = Framebuffer(width, height, (GL.GL_RGBA32F, GL.GL_RGBA32F), depth=True)
+        self.program = Program(HARNESS_GLSL / "gbuffer.vert.glsl",
+                               HARNESS_GLSL / "gbuffer.frag.glsl")
+
+    @property
+    def position_texture(self):
+        return self.fbo.colors[0]
+
+    @property
+    def normal_texture(self):
+        return self.fbo.colors[1]
+
+    @property
+    def depth_texture(self):
+        return self.fbo.depth
+
+    def render(self, geometry, view_proj: np.ndarray) -> None:
+        self.fbo.clear((0, 0, 0, 0), (0, 0, 0, 0))
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDisable(GL.GL_CULL_FACE)
+        self.program.use().set(view_proj=view_proj)
+        geometry.draw()
+
+    def read(self) -> GBufferArrays:
+        p = self.fbo.read(0)
+        n = self.fbo.read(1)
+        return GBufferArrays(p[..., :3].copy(), n[..., :3].copy(), n[..., 3].copy(),
+                             p[..., 3] > 0.5)
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.program.release()

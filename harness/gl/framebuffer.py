@@ -1,0 +1,113 @@
+"""Textures and framebuffers: float colour targets and a depth+stencil attachment."""
+
+from __future__ import annotations
+
+import numpy as np
+from OpenGL import GL
+
+# internal format -> (format, type, channels, bytes per texel)
+FORMATS = {
+    GL.GL_R32F: (GL.GL_RED, GL.GL_FLOAT, 1, 4),
+    GL.GL_RG32F: (GL.GL_RG, GL.GL_FLOAT, 2, 8),
+    GL.GL_RGBA32F: (GL.GL_RGBA, GL.GL_FLOAT, 4, 16),
+    GL.GL_RGBA8: (GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, 4, 4),
+    GL.GL_DEPTH24_STENCIL8: (GL.GL_DEPTH_STENCIL, GL.GL_UNSIGNED_INT_24_8, 1, 4),
+    GL.GL_DEPTH_COMPONENT32F: (GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, 1, 4),
+}
+
+
+class Texture:
+    def __init__(self, width: int, height: int, internal_format, *, linear: bool = False):
+        self.width, self.height, self.internal_format = width, height, internal_format
+        _, _, self.channels, self.texel_bytes = FORMATS[internal_format]
+        self.id = GL.glGenTextures(1)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, internal_format, width, height)
+        filt = GL.GL_LINEAR if linear else GL.GL_NEAREST
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, filt)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, filt)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)
+
+    @property
+    def nbytes(self) -> int:
+        return self.width * self.height * self.texel_bytes
+
+    def bind(self, unit: int) -> int:
+        GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+        return unit
+
+    def release(self) -> None:
+        GL.glDeleteTextures([self.id])
+
+
+class Framebuffer:
+    """Colour textures (attachment order = ``colors``) and an optional depth+stencil texture."""
+
+    def __init__(self, width: int, height: int, colors=(GL.GL_RGBA32F,), *,
+                 depth: bool = True, linear: bool = False):
+        self.width, self.height = width, height
+        self.id = GL.glGenFramebuffers(1)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.id)
+        self.colors = [Texture(width, height, f, linear=linear) for f in colors]
+        for i, tex in enumerate(self.colors):
+            GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i,
+                                      GL.GL_TEXTURE_2D, tex.id, 0)
+        self.depth = Texture(width, height, GL.GL_DEPTH24_STENCIL8) if depth else None
+        if self.depth:
+            GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT,
+                                      GL.GL_TEXTURE_2D, self.depth.id, 0)
+        GL.glDrawBuffers(len(self.colors), [GL.GL_COLOR_ATTACHMENT0 + i
+                                            for i in range(len(self.colors))])
+        status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        if status != GL.GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"framebuffer {width}x{height} incomplete: status 0x{status:x}")
+
+    @property
+    def nbytes(self) -> int:
+        return sum(t.nbytes for t in self.colors) + (self.depth.nbytes if self.depth else 0)
+
+    def bind(self) -> "Framebuffer":
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.id)
+        GL.glViewport(0, 0, self.width, self.height)
+        return self
+
+    def clear(self, *colors, depth: float = 1.0, stencil: int = 0) -> None:
+        """Clear each colour attachment to the given RGBA (or scalar) and depth/stencil."""
+        self.bind()
+        for i, value in enumerate(colors):
+            rgba = np.broadcast_to(np.asarray(value, np.float32), (4,)).copy()
+            GL.glClearBufferfv(GL.GL_COLOR, i, rgba)
+        if self.depth:
+            GL.glDepthMask(GL.GL_TRUE)
+            GL.glStencilMask(0xFF)
+            GL.glClearBufferfi(GL.GL_DEPTH_STENCIL, 0, depth, stencil)
+
+    def read(self, attachment: int = 0) -> np.ndarray:
+        """Attachment as float32 (H, W, C) or (H, W), row 0 at the top of the image."""
+        tex = self.colors[attachment]
+        fmt, typ, channels, _ = FORMATS[tex.internal_format]
+        self.bind()
+        GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + attachment)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        dtype = np.float32 if typ == GL.GL_FLOAT else np.uint8
+        raw = GL.glReadPixels(0, 0, self.width, self.height, fmt, typ)
+        a = np.frombuffer(raw, dtype=dtype) if isinstance(raw, bytes) else np.asarray(raw, dtype)
+        a = a.reshape(self.height, self.width, channels)[::-1]
+        a = a.astype(np.float32) / 255.0 if dtype == np.uint8 else a
+        return np.ascontiguousarray(a[..., 0] if channels == 1 else a)
+
+    def read_stencil(self) -> np.ndarray:
+        self.bind()
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        raw = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_STENCIL_INDEX,
+                              GL.GL_UNSIGNED_BYTE)
+        a = np.frombuffer(raw, np.uint8) if isinstance(raw, bytes) else np.asarray(raw, np.uint8)
+        return np.ascontiguousarray(a.reshape(self.height, self.width)[::-1])
+
+    def release(self) -> None:
+        for t in self.colors + ([self.depth] if self.depth else []):
+            t.release()
+        GL.glDeleteFramebuffers(1, [self.id])

@@ -1,0 +1,109 @@
+"""GLSL programs from .glsl files, with ``#include "file.glsl"`` and ``#define`` injection."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+from OpenGL import GL
+
+GLSL_VERSION = "#version 430 core"
+HARNESS_GLSL = Path(__file__).parent / "glsl"
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
+
+
+class ShaderError(RuntimeError):
+    """A shader did not compile or link; the message carries the driver's log."""
+
+
+def _resolve(name: str, here: Path) -> Path:
+    for folder in (here, HARNESS_GLSL):
+        if (folder / name).is_file():
+            return folder / name
+    raise ShaderError(f"GLSL include {name!r} not found beside {here} or in {HARNESS_GLSL}")
+
+
+def preprocess(path: Path, defines: dict | None = None) -> str:
+    """Source of ``path`` with includes expanded (each once) and defines prepended."""
+    seen: set[Path] = set()
+
+    def expand(p: Path) -> str:
+        if p in seen:
+            return ""
+        seen.add(p)
+        return _INCLUDE.sub(lambda m: expand(_resolve(m.group(1), p.parent)), p.read_text())
+
+    header = [GLSL_VERSION] + [f"#define {k} {v}" for k, v in (defines or {}).items()]
+    return "\n".join(header) + "\n#line 1\n" + expand(Path(path))
+
+
+def _compile(kind, source: str, label: str) -> int:
+    shader = GL.glCreateShader(kind)
+    GL.glShaderSource(shader, source)
+    GL.glCompileShader(shader)
+    if not GL.glGetShaderiv(shader, GL.GL_COMPILE_STATUS):
+        log = GL.glGetShaderInfoLog(shader).decode(errors="replace").strip()
+        GL.glDeleteShader(shader)
+        raise ShaderError(f"{label} did not compile: {' | '.join(log.splitlines())}")
+    return shader
+
+
+class Program:
+    """A linked program; :meth:`set` uploads uniforms by name and numpy shape."""
+
+    def __init__(self, vertex: Path, fragment: Path, defines: dict | None = None,
+                 geometry: Path | None = None):
+        stages = [(GL.GL_VERTEX_SHADER, vertex), (GL.GL_FRAGMENT_SHADER, fragment)]
+        if geometry is not None:
+            stages.append((GL.GL_GEOMETRY_SHADER, geometry))
+        shaders = [_compile(kind, preprocess(p, defines), Path(p).name) for kind, p in stages]
+        self.id = GL.glCreateProgram()
+        for s in shaders:
+            GL.glAttachShader(self.id, s)
+        GL.glLinkProgram(self.id)
+        for s in shaders:
+            GL.glDeleteShader(s)
+        if not GL.glGetProgramiv(self.id, GL.GL_LINK_STATUS):
+            log = GL.glGetProgramInfoLog(self.id).decode(errors="replace").strip()
+            raise ShaderError(f"{Path(vertex).name}+{Path(fragment).name} did not link: {log}")
+        self._locations: dict[str, int] = {}
+
+    def use(self) -> "Program":
+        GL.glUseProgram(self.id)
+        return self
+
+    def location(self, name: str) -> int:
+        if name not in self._locations:
+            self._locations[name] = GL.glGetUniformLocation(self.id, name)
+        return self._locations[name]
+
+    def set(self, **uniforms) -> "Program":
+        """Set uniforms on this (bound) program. Unused uniforms are ignored, as GL does."""
+        for name, value in uniforms.items():
+            loc = self.location(name)
+            if loc < 0:
+                continue
+            if isinstance(value, (bool, int, np.integer)):
+                GL.glUniform1i(loc, int(value))
+                continue
+            a = np.asarray(value, dtype=np.float32)
+            match a.shape:
+                case ():
+                    GL.glUniform1f(loc, float(a))
+                case (2,):
+                    GL.glUniform2f(loc, *a)
+                case (3,):
+                    GL.glUniform3f(loc, *a)
+                case (4,):
+                    GL.glUniform4f(loc, *a)
+                case (3, 3):
+                    GL.glUniformMatrix3fv(loc, 1, GL.GL_TRUE, a)
+                case (4, 4):
+                    GL.glUniformMatrix4fv(loc, 1, GL.GL_TRUE, a)
+                case _:
+                    raise ValueError(f"uniform {name}: unsupported shape {a.shape}")
+        return self
+
+    def release(self) -> None:
+        GL.glDeleteProgram(self.id)

@@ -1,0 +1,248 @@
+"""The Mitsuba reference: exact hard-shadow visibility averaged over each pixel's area.
+
+Per pixel, ``samples`` jittered stratified primary rays from the matched camera; from each hit
+one shadow ray toward the spot light's position or against the directional light's direction.
+V_ref is the lit fraction of the samples that hit geometry; a pixel is covered when at least
+half its samples hit. When the scene's effects include ``direct``, Mitsuba's ``direct``
+integrator (delta light, diffuse BSDFs, no indirect light) renders the shaded image too.
+Results are cached on disk under a hash of the scene, resolution, samples and Mitsuba version.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import math
+import os
+import re
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .scene import BuiltScene
+
+CACHE_VERSION = 1  # bump when the reference's definition changes
+LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
+               "/usr/lib", "/usr/local/lib")
+# Irradiance (directional) or intensity (spot) of pi makes the diffuse radiance albedo * cos
+# (/ r^2 for the spot), the same scale the GL side shades with.
+LIGHT_POWER = math.pi
+
+
+@dataclass
+class Reference:
+    visibility: np.ndarray  # float32 (H, W)
+    covered: np.ndarray  # bool (H, W)
+    direct: np.ndarray | None  # float32 (H, W, 3) direct-lit radiance, or None
+    seconds: float  # ray-tracing time when computed (not the cache load)
+    variant: str
+    cached: bool = False
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("SHADOWBENCH_CACHE") or Path.home() / ".cache" / "shadowbench"
+    return Path(root) / "reference"
+
+
+def _llvm_libraries() -> list[tuple[int, str]]:
+    found = []
+    for folder in LLVM_SEARCH:
+        for path in glob.glob(os.path.join(folder, "libLLVM*.so*")):
+            m = re.search(r"libLLVM-?(\d+)", os.path.basename(path))
+            if m:
+                found.append((int(m.group(1)), path))
+    return sorted(found, reverse=True)
+
+
+def choose_variant(prefer_cuda: bool = False) -> str:
+    """Pick a Mitsuba variant without loading one that would abort the process.
+
+    Dr.Jit's LLVM backend aborts (uncatchably) with LLVM 15 or older, so ``llvm_ad_rgb`` is
+    chosen only when an LLVM >= 16 library exists, and Dr.Jit is pointed at it.
+    """
+    import mitsuba as mi
+
+    if prefer_cuda and "cuda_ad_rgb" in mi.variants():
+        try:
+            mi.set_variant("cuda_ad_rgb")
+            return "cuda_ad_rgb"
+        except Exception:  # no CUDA device or driver: fall through to the CPU variants
+            pass
+    chosen = os.environ.get("DRJIT_LIBLLVM_PATH")
+    libraries = _llvm_libraries()
+    if not chosen and libraries and libraries[0][0] >= 16:
+        os.environ["DRJIT_LIBLLVM_PATH"] = chosen = libraries[0][1]
+    version = next((v for v, p in libraries if p == chosen), None)
+    if chosen and (version is None or version >= 16) and "llvm_ad_rgb" in mi.variants():
+        return "llvm_ad_rgb"
+    warnings.warn(
+        "no LLVM >= 16 found (Debian: apt-get install libllvm19); the reference falls back to "
+        "Mitsuba's scalar_rgb variant, which is much slower", RuntimeWarning, stacklevel=2)
+    return "scalar_rgb"
+
+
+def _mitsuba(variant: str):
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return mi
+
+
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float):
+    mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, np.float32).ravel())
+    params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+    params.update()
+    mesh.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                   "value": [albedo] * 3}}))
+    return mesh
+
+
+def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> dict:
+    """The scene for Mitsuba: the same meshes, the matched camera, the delta light."""
+    cam = scene.config.camera
+    d: dict = {
+        "type": "scene",
+        "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
+        "sensor": {
+            "type": "perspective",
+            "fov_axis": "y",
+            "fov": cam.yfov,
+            "near_clip": cam.near,
+            "far_clip": cam.far,
+            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position, target=cam.target,
+                                                       up=cam.up),
+            "film": {"type": "hdrfilm", "width": scene.width, "height": scene.height,
+                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+            "sampler": {"type": "stratified", "sample_count": samples, "seed": seed},
+        },
+    }
+    light = scene.light
+    if light.type == "directional":
+        d["light"] = {"type": "directional", "direction": light.direction.tolist(),
+                      "irradiance": {"type": "rgb", "value": [LIGHT_POWER] * 3}}
+    else:
+        half = light.fov_deg / 2
+        d["light"] = {
+            "type": "spot", "cutoff_angle": half, "beam_width": half,
+            "intensity": {"type": "rgb", "value": [LIGHT_POWER] * 3},
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=light.position.tolist(),
+                target=(light.position + light.direction).tolist(),
+                up=_up_for(light.direction).tolist()),
+        }
+    for i, part in enumerate(scene.parts):
+        d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", part.vertices, part.faces, part.albedo)
+    return d
+
+
+def _up_for(direction: np.ndarray) -> np.ndarray:
+    from .transforms import any_perpendicular_up
+
+    return any_perpendicular_up(direction)
+
+
+def _sample_positions(width: int, height: int, samples: int, rows: slice, seed: int):
+    """Jittered stratified film positions in [0,1]^2 for the rows in ``rows``: (N, 2)."""
+    side = math.isqrt(samples)
+    rng = np.random.default_rng([seed, rows.start])
+    ys, xs, sy, sx = np.meshgrid(np.arange(rows.start, rows.stop), np.arange(width),
+                                 np.arange(side), np.arange(side), indexing="ij")
+    jitter = rng.random((2,) + xs.shape)
+    px = (xs + (sx + jitter[0]) / side) / width
+    py = (ys + (sy + jitter[1]) / side) / height
+    return np.stack([px.ravel(), py.ravel()], axis=1).astype(np.float32)
+
+
+def _trace_visibility(mi, mscene, scene: BuiltScene, positions: np.ndarray):
+    """(hit, lit) booleans for the film positions, with Mitsuba's vectorised ray queries."""
+    sensor = mscene.sensors()[0]
+    n = len(positions)
+    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(positions[:, 0], positions[:, 1]),
+                               mi.Point2f(np.full(n, 0.5, np.float32),
+                                          np.full(n, 0.5, np.float32)))
+    si = mscene.ray_intersect(ray)
+    hit = si.is_valid()
+    light = scene.light
+    if light.type == "directional":
+        shadow_ray = si.spawn_ray(mi.Vector3f(*(-light.direction).tolist()))
+    else:
+        shadow_ray = si.spawn_ray_to(mi.Point3f(*light.position.tolist()))
+    occluded = mscene.ray_test(shadow_ray, hit)
+    return np.asarray(hit, dtype=bool), np.asarray(hit & ~occluded, dtype=bool)
+
+
+def _trace_visibility_scalar(mi, mscene, scene: BuiltScene, positions: np.ndarray):
+    sensor = mscene.sensors()[0]
+    hit = np.zeros(len(positions), bool)
+    lit = np.zeros(len(positions), bool)
+    light = scene.light
+    for i, (x, y) in enumerate(positions):
+        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(x, y), mi.Point2f(0.5, 0.5))
+        si = mscene.ray_intersect(ray)
+        if not si.is_valid():
+            continue
+        hit[i] = True
+        if light.type == "directional":
+            shadow_ray = si.spawn_ray(mi.Vector3f(*(-light.direction).tolist()))
+        else:
+            shadow_ray = si.spawn_ray_to(mi.Point3f(*light.position.tolist()))
+        lit[i] = not mscene.ray_test(shadow_ray)
+    return hit, lit
+
+
+def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
+    import mitsuba as mi
+
+    text = f"{scene.key}|{scene.width}x{scene.height}|{samples}|{seed}|{mi.__version__}|" \
+           f"{CACHE_VERSION}|{'direct' in scene.config.effects}"
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
+                      variant: str | None = None, use_cache: bool = True,
+                      rays_per_batch: int = 1 << 22) -> Reference:
+    if samples < 1 or math.isqrt(samples) ** 2 != samples:
+        raise ValueError(f"reference samples must be a square number (1, 4, 16, 64...), "
+                         f"got {samples}")
+    path = cache_dir() / f"{cache_key(scene, samples, seed)}.npz"
+    if use_cache and path.is_file():
+        with np.load(path) as z:
+            direct = z["direct"] if z["direct"].size else None
+            return Reference(z["visibility"], z["covered"], direct, float(z["seconds"]),
+                             str(z["variant"]), cached=True)
+    variant = variant or choose_variant()
+    mi = _mitsuba(variant)
+    start = time.perf_counter()
+    mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples, seed))
+    w, h = scene.width, scene.height
+    rows_per_batch = max(1, rays_per_batch // (w * samples))
+    hits, lits = [], []
+    trace = _trace_visibility if variant != "scalar_rgb" else _trace_visibility_scalar
+    for y0 in range(0, h, rows_per_batch):
+        rows = slice(y0, min(h, y0 + rows_per_batch))
+        hit, lit = trace(mi, mscene, scene, _sample_positions(w, h, samples, rows, seed))
+        hits.append(hit.reshape(-1, samples))
+        lits.append(lit.reshape(-1, samples))
+    hit_count = np.concatenate(hits).sum(1).reshape(h, w)
+    lit_count = np.concatenate(lits).sum(1).reshape(h, w)
+    covered = hit_count * 2 >= samples
+    visibility = np.where(hit_count > 0, lit_count / np.maximum(hit_count, 1), 1.0)
+    direct = None
+    if "direct" in scene.config.effects:
+        direct = np.asarray(mi.render(mscene, spp=samples, seed=seed), np.float32)[..., :3]
+    ref = Reference(visibility.astype(np.float32), covered, direct,
+                    time.perf_counter() - start, variant)
+    if use_cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez_compressed(tmp, visibility=ref.visibility, covered=ref.covered,
+                            direct=direct if direct is not None else np.zeros(0, np.float32),
+                            seconds=ref.seconds, variant=variant)
+        os.replace(tmp, path)
+    return ref

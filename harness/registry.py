@@ -1,0 +1,45 @@
+"""Technique discovery through the ``shadowbench.techniques`` entry-point group.
+
+Built-in techniques register exactly as a third-party package would: an entry point
+``name = "package.module:Class"`` in that group. Two entry points with one name are an error.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from importlib.metadata import entry_points
+
+from .technique import Technique
+
+GROUP = "shadowbench.techniques"
+
+
+class RegistryError(RuntimeError):
+    pass
+
+
+@lru_cache(maxsize=1)
+def techniques() -> dict[str, type[Technique]]:
+    found: dict[str, type[Technique]] = {}
+    origin: dict[str, str] = {}
+    for ep in entry_points(group=GROUP):
+        if ep.name in found:
+            raise RegistryError(
+                f"technique {ep.name!r} is registered twice: {origin[ep.name]} and {ep.value}"
+            )
+        cls = ep.load()
+        if not (isinstance(cls, type) and issubclass(cls, Technique)):
+            raise RegistryError(f"entry point {ep.name} = {ep.value} is not a Technique subclass")
+        if cls.name != ep.name:
+            raise RegistryError(
+                f"entry point {ep.name!r} loads {ep.value}, whose name is {cls.name!r}"
+            )
+        found[ep.name], origin[ep.name] = cls, ep.value
+    return dict(sorted(found.items()))
+
+
+def get(name: str) -> type[Technique]:
+    registered = techniques()
+    if name not in registered:
+        raise KeyError(f"unknown technique {name!r}; registered: {', '.join(registered)}")
+    return registered[name]

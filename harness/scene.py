@@ -1,0 +1,189 @@
+"""One neutral triangle scene, built once, from which both the GL and the Mitsuba scene are made.
+
+Both renderers receive the same float32 vertex arrays, so a technique differs from the
+reference only in how it computes shadows. Shading is flat (face normals) in both.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from . import config as cfg
+
+
+@dataclass(frozen=True)
+class MeshPart:
+    """One object copy: merged vertices and faces (for adjacency), and its albedo."""
+
+    name: str
+    vertices: np.ndarray  # (V, 3) float32
+    faces: np.ndarray  # (F, 3) int32
+    albedo: float
+
+    @cached_property
+    def is_closed(self) -> bool:
+        return trimesh.Trimesh(self.vertices, self.faces, process=False).is_watertight
+
+
+@dataclass(frozen=True)
+class Light:
+    """The light in world space. ``direction`` is the way light travels (unit)."""
+
+    type: str
+    direction: np.ndarray
+    position: np.ndarray | None = None  # spot only
+    fov_deg: float | None = None  # spot only: full cone angle
+
+    def to_light(self, points: np.ndarray) -> np.ndarray:
+        """Unit vectors from surface points toward the light, shape like ``points``."""
+        if self.type == "directional":
+            return np.broadcast_to(-self.direction, points.shape).astype(np.float32)
+        d = self.position - points
+        return d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-30)
+
+
+@dataclass(frozen=True)
+class BuiltScene:
+    name: str
+    config: cfg.Scene
+    parts: list[MeshPart]
+    light: Light
+    key: str  # content hash of the scene description (mesh file contents included)
+    source: Path | None = field(default=None, compare=False)
+
+    @property
+    def width(self) -> int:
+        return self.config.resolution[0]
+
+    @property
+    def height(self) -> int:
+        return self.config.resolution[1]
+
+    @cached_property
+    def triangles(self) -> np.ndarray:
+        """All triangles, unrolled: (T, 3, 3) float32."""
+        return np.concatenate([p.vertices[p.faces] for p in self.parts]).astype(np.float32)
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        tri = self.triangles.astype(np.float64)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return (n / np.where(length > 0, length, 1)).astype(np.float32)
+
+    @cached_property
+    def face_albedo(self) -> np.ndarray:
+        return np.concatenate(
+            [np.full(len(p.faces), p.albedo, np.float32) for p in self.parts]
+        )
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """Axis-aligned bounds of all geometry, (2, 3) float64: min row, max row."""
+        v = self.triangles.reshape(-1, 3)
+        return np.stack([v.min(0), v.max(0)]).astype(np.float64)
+
+    def with_resolution(self, width: int, height: int) -> "BuiltScene":
+        new_config = self.config.model_copy(update={"resolution": (width, height)})
+        return BuiltScene(
+            self.name, new_config, self.parts, self.light, scene_key(new_config, self.source),
+            self.source,
+        )
+
+
+def _transform(obj: cfg.Placed) -> np.ndarray:
+    scale = np.broadcast_to(np.asarray(obj.scale, dtype=float), (3,))
+    rx, ry, rz = np.radians(obj.rotate)
+    rotation = (
+        trimesh.transformations.rotation_matrix(rz, [0, 0, 1])
+        @ trimesh.transformations.rotation_matrix(ry, [0, 1, 0])
+        @ trimesh.transformations.rotation_matrix(rx, [1, 0, 0])
+    )
+    m = trimesh.transformations.translation_matrix(obj.translate) @ rotation
+    return m @ np.diag([*scale, 1.0])
+
+
+def _plane(size) -> trimesh.Trimesh:
+    sx, sy = size[0] / 2, size[1] / 2
+    v = [[-sx, -sy, 0], [sx, -sy, 0], [sx, sy, 0], [-sx, sy, 0]]
+    return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+
+
+def _base_mesh(obj, source: Path | None) -> trimesh.Trimesh:
+    c = trimesh.creation
+    match obj:
+        case cfg.Plane():
+            return _plane(obj.size)
+        case cfg.Box():
+            return c.box(extents=obj.size)
+        case cfg.Sphere():
+            return c.icosphere(subdivisions=obj.subdivisions, radius=obj.radius)
+        case cfg.Cylinder():
+            return c.cylinder(radius=obj.radius, height=obj.height, sections=obj.sections)
+        case cfg.Capsule():
+            return c.capsule(height=obj.height, radius=obj.radius,
+                             count=[obj.sections, obj.sections])
+        case cfg.Lathe():
+            return c.revolve(np.asarray(obj.profile, dtype=float), sections=obj.sections)
+        case cfg.MeshFile():
+            path = cfg.resolve_mesh_path(source or Path("."), obj)
+            return trimesh.load(path, force="mesh")
+    raise TypeError(f"unknown object {obj!r}")
+
+
+def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
+    parts = []
+    for index, obj in enumerate(scene.objects):
+        base = _base_mesh(obj, source)
+        base.apply_transform(_transform(obj))
+        vertices = np.asarray(base.vertices, dtype=np.float64)
+        faces = np.asarray(base.faces, dtype=np.int32)
+        array = obj.array or cfg.Array()
+        for ix in np.ndindex(*array.count):
+            offset = np.asarray(ix, dtype=float) * np.asarray(array.step)
+            parts.append(MeshPart(
+                name=f"{index}:{obj.shape}" + (f"{list(ix)}" if obj.array else ""),
+                vertices=(vertices + offset).astype(np.float32),
+                faces=faces,
+                albedo=obj.albedo,
+            ))
+    return parts
+
+
+def _light(light) -> Light:
+    if isinstance(light, cfg.DirectionalLight):
+        d = np.asarray(light.direction, dtype=np.float64)
+        return Light("directional", d / np.linalg.norm(d))
+    pos = np.asarray(light.position, dtype=np.float64)
+    d = np.asarray(light.target, dtype=np.float64) - pos
+    return Light("spot", d / np.linalg.norm(d), pos, light.fov)
+
+
+def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
+    """Hash of the scene description, including the bytes of any mesh files it loads."""
+    h = hashlib.sha256(json.dumps(scene.model_dump(mode="json"), sort_keys=True).encode())
+    for obj in scene.objects:
+        if isinstance(obj, cfg.MeshFile):
+            h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def build_scene(name: str, scene: cfg.Scene, source: Path | None = None) -> BuiltScene:
+    return BuiltScene(name, scene, build_parts(scene, source), _light(scene.light),
+                      scene_key(scene, source), source)
+
+
+def load_scene(name: str, scene_file: str | Path = "scenes.yaml") -> BuiltScene:
+    scenes = cfg.load_scenes(scene_file)
+    if name not in scenes:
+        raise cfg.ConfigError(
+            f"{scene_file}: no scene named {name!r}; it has {', '.join(sorted(scenes))}"
+        )
+    return build_scene(name, scenes[name], Path(scene_file))

@@ -1,0 +1,166 @@
+"""The technique contract and the frame a technique renders into.
+
+A technique subclasses :class:`Technique`, defines ``name``, ``summary``, ``paper`` and a pydantic
+``Params`` model, and implements ``prepare``, ``render`` and ``release``. It computes per-pixel
+light visibility V for the G-buffer pixels: its last pass draws V into the frame's visibility
+target (``frame.begin_visibility()``), and ``render`` returns ``frame.output(...)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from OpenGL import GL
+from pydantic import BaseModel, ConfigDict
+
+from .gbuffer import GBuffer
+from .gl.framebuffer import Framebuffer
+from .gl.geometry import FullscreenTriangle, scene_vertex_array
+from .gl.measure import PassMeter
+from .gl.shaders import HARNESS_GLSL, Program
+from .scene import BuiltScene
+from .transforms import camera_matrices
+
+
+class NotApplicable(Exception):
+    """Raised by ``prepare`` when the technique does not apply to a scene (status=skipped)."""
+
+
+class TechniqueParams(BaseModel):
+    """Base of every ``Params`` model: unknown names are errors, values are validated."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass
+class ShadowOutput:
+    visibility: np.ndarray  # float32 (H, W) in [0, 1], 1 = lit
+    mem_bytes: int
+    fetches_per_px: float
+    nonfinite: int = 0  # NaN/Inf seen in the technique's matrices
+    extra: dict[str, Any] = field(default_factory=dict)  # additional result columns
+    warnings: list[str] = field(default_factory=list)
+
+
+class Technique:
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    paper: ClassVar[str]
+    Params: ClassVar[type[TechniqueParams]]
+
+    def __init__(self, params: TechniqueParams):
+        self.params = params
+
+    def prepare(self, frame: "Frame") -> None:
+        """Allocate GL resources and upload what depends on geometry."""
+
+    def render(self, frame: "Frame") -> ShadowOutput:
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Free GL resources."""
+
+    @classmethod
+    def code_version(cls) -> str:
+        """Hash of the module's source and of the .glsl files beside it that the source names."""
+        source_file = Path(inspect.getsourcefile(cls))
+        source = source_file.read_text()
+        h = hashlib.sha256(source.encode())
+        for name in sorted(set(re.findall(r"[\w.]+\.glsl", source))):
+            glsl = source_file.parent / name
+            if glsl.is_file():
+                h.update(glsl.read_bytes())
+        return h.hexdigest()[:12]
+
+    @staticmethod
+    def shader(module_file: str, vertex: str, fragment: str, **defines) -> Program:
+        """Compile a program from .glsl files beside ``module_file`` (or the harness's own)."""
+        here = Path(module_file).parent
+
+        def find(name):
+            return here / name if (here / name).is_file() else HARNESS_GLSL / name
+
+        return Program(find(vertex), find(fragment), defines or None)
+
+
+class Frame:
+    """Everything a technique may use for one scene at one resolution, owned by the harness."""
+
+    def __init__(self, scene: BuiltScene, *, seed: int = 0):
+        self.scene = scene
+        self.width, self.height = scene.width, scene.height
+        self.seed = seed
+        self.camera = camera_matrices(scene.config.camera, self.width, self.height)
+        self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
+        self.gbuffer = GBuffer(self.width, self.height)
+        self.fullscreen_triangle = FullscreenTriangle()
+        self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
+        self.meter = PassMeter()
+        self.gbuffer.render(self.geometry, self.camera.view_proj)
+        self.arrays = self.gbuffer.read()
+
+    def measure(self, name: str):
+        """Context manager around one pass: times it and counts its fragments."""
+        return self.meter.measure(name)
+
+    def draw_scene(self) -> None:
+        self.geometry.draw()
+
+    def draw_fullscreen(self) -> None:
+        self.fullscreen_triangle.draw()
+
+    def bind_gbuffer(self, program: Program, first_unit: int = 0) -> int:
+        """Bind the G-buffer textures for ``gbuffer_read.glsl``; returns the next free unit."""
+        program.set(gbuffer_position=self.gbuffer.position_texture.bind(first_unit),
+                    gbuffer_normal=self.gbuffer.normal_texture.bind(first_unit + 1))
+        return first_unit + 2
+
+    def begin_visibility(self) -> None:
+        """Bind the visibility target (cleared to lit) for a full-screen pass writing V."""
+        self.visibility_target.clear((1, 1, 1, 1))
+        GL.glDisable(GL.GL_DEPTH_TEST)
+        GL.glDisable(GL.GL_STENCIL_TEST)
+        GL.glDisable(GL.GL_BLEND)
+        GL.glDisable(GL.GL_CULL_FACE)
+
+    def output(self, *, mem_bytes: int, fetches_per_px: float, **kwargs) -> ShadowOutput:
+        return ShadowOutput(self.visibility_target.read(), mem_bytes, fetches_per_px, **kwargs)
+
+    def measure_scene_pass(self, frames: int, warmup: int):
+        """Time the G-buffer pass alone: the no-shadow cost. Returns (median ms, fragments)."""
+        meter = PassMeter()
+        for i in range(warmup + frames):
+            meter.new_frame(i >= warmup)
+            with meter.measure("scene"):
+                self.gbuffer.render(self.geometry, self.camera.view_proj)
+        stats = meter.passes()[0]
+        meter.release()
+        return stats.ms, stats.fragments
+
+    def release(self) -> None:
+        for r in (self.geometry, self.gbuffer, self.fullscreen_triangle, self.visibility_target,
+                  self.meter):
+            r.release()
+
+
+def reset_gl_state() -> None:
+    """Put the GL state a technique may have changed back to the defaults the harness assumes."""
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+    GL.glUseProgram(0)
+    GL.glBindVertexArray(0)
+    for cap in (GL.GL_BLEND, GL.GL_STENCIL_TEST, GL.GL_CULL_FACE, GL.GL_POLYGON_OFFSET_FILL,
+                GL.GL_DEPTH_CLAMP):
+        GL.glDisable(cap)
+    GL.glEnable(GL.GL_DEPTH_TEST)
+    GL.glDepthFunc(GL.GL_LESS)
+    GL.glDepthMask(GL.GL_TRUE)
+    GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
+    GL.glStencilMask(0xFF)
+    while GL.glGetError() != GL.GL_NO_ERROR:
+        pass

@@ -1,0 +1,48 @@
+"""Williams' shadow map (1978)."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+
+from .shadowmap import FilteredShadowMap
+
+
+class ShadowMap(Technique):
+    """One depth map from the light, one depth comparison per shaded pixel.
+
+    Orthographic map fitted to the scene bounds for a directional light, perspective over the
+    cone for a spot light. Map depths are linear light-space distances, so biases are in scene
+    units.
+
+    ==============  ================================================  =======  ===========
+    Parameter       Meaning                                           Default  Range
+    ==============  ================================================  =======  ===========
+    ``res``         map width and height, texels                      1024     16 .. 8192
+    ``bias``        constant depth bias, scene units                  0.02     >= 0
+    ``slope_bias``  slope-scaled bias, texels x tan(light incidence)  1.0      >= 0
+    ==============  ================================================  =======  ===========
+    """
+
+    name = "sm"
+    summary = "shadow map: one depth comparison per pixel"
+    paper = "Williams 1978, Casting curved shadows on curved surfaces"
+
+    class Params(TechniqueParams):
+        res: int = Field(1024, ge=16, le=8192)
+        bias: float = Field(0.02, ge=0)
+        slope_bias: float = Field(1.0, ge=0)
+
+    def prepare(self, frame: Frame) -> None:
+        self.passes = FilteredShadowMap(frame, self.params.res)
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        p = self.params
+        self.passes.render(frame, grid_n=1, spacing=1.0, bias_min=p.bias, bias_max=p.bias,
+                           slope_bias=p.slope_bias, jitter=False, seed=0)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
+                            nonfinite=self.passes.map.nonfinite)
+
+    def release(self) -> None:
+        self.passes.release()
