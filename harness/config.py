@@ -337,3 +337,97 @@ def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile):
         raise ConfigError(
             f"{where}: {'.'.join(map(str, loc))}: cannot load mesh {mesh_path}: {e}"
         ) from None
+
+
+# --- experiments -----------------------------------------------------------------------------
+
+Scalar = Union[bool, int, float, str]
+
+
+class Grid(Strict):
+    """One parameter grid: every combination of ``product`` times each row of ``zip``,
+    with ``set`` fixed."""
+
+    product: dict[str, list[Scalar]] = {}
+    zip: dict[str, list[Scalar]] = {}
+    set: dict[str, Scalar] = {}
+
+    @model_validator(mode="after")
+    def _nonempty(self):
+        for kind in ("product", "zip"):
+            for key, values in getattr(self, kind).items():
+                if not values:
+                    raise ValueError(f"{kind}.{key} is an empty list")
+        lengths = {len(v) for v in self.zip.values()}
+        if len(lengths) > 1:
+            raise ValueError(f"zip lists must have equal lengths, got {sorted(lengths)}")
+        return self
+
+    def combinations(self) -> list[dict]:
+        import itertools
+
+        names = list(self.product)
+        prods = [dict(zip(names, values))
+                 for values in itertools.product(*(self.product[n] for n in names))]
+        rows = ([dict(zip(self.zip, values)) for values in zip(*self.zip.values())]
+                if self.zip else [{}])
+        return [{**self.set, **p, **z} for p in prods for z in rows]
+
+
+class ReferenceSettings(Strict):
+    samples: int = Field(16, ge=1, le=1024)
+    seed: int = Field(0, ge=0)
+
+    @field_validator("samples")
+    @classmethod
+    def _square(cls, v):
+        if math.isqrt(v) ** 2 != v:
+            raise ValueError(f"must be a square number (1, 4, 16, 64, ...), got {v}")
+        return v
+
+
+class Experiment(Strict):
+    scene_file: str | None = None  # relative to the experiment file; default: --scene-file
+    scenes: Union[Literal["all"], list[str]] = "all"
+    # technique name -> grid(s); or "all": every registered technique at its defaults
+    techniques: Union[Literal["all"], dict[str, Union[Grid, list[Grid]]]]
+    resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
+    frames: int = Field(5, ge=1, le=1000)
+    warmup: int = Field(2, ge=0, le=1000)
+    reference: ReferenceSettings = ReferenceSettings()
+
+    @field_validator("techniques")
+    @classmethod
+    def _some(cls, v):
+        if v == "all":
+            return v
+        if not v:
+            raise ValueError("must name at least one technique")
+        for name, grids in v.items():
+            if isinstance(grids, list) and not grids:
+                raise ValueError(f"{name}: empty list of grids")
+        return v
+
+    @field_validator("resolutions")
+    @classmethod
+    def _res(cls, v):
+        if v is not None and (not v or not all(16 <= x <= 8192 for r in v for x in r)):
+            raise ValueError("must be a non-empty list of [width, height] in [16, 8192]")
+        return v
+
+
+def load_experiment(path: str | Path) -> tuple[Experiment, object]:
+    """Validate an experiment file; returns the model and the YAML root node (for lines)."""
+    path = Path(path)
+    data, node = read_yaml(path)
+    try:
+        return Experiment.model_validate(data), node
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(path, e, node)) from None
+
+
+def key_error(path: Path, node, loc: tuple, message: str) -> ConfigError:
+    """A ConfigError for a key path found invalid after schema validation."""
+    line = _line_of(node, loc) if node is not None else None
+    where = f"{path}:{line}" if line else str(path)
+    return ConfigError(f"{where}: {'.'.join(map(str, loc))}: {message}")

@@ -24,7 +24,7 @@ import numpy as np
 
 from .scene import BuiltScene
 
-CACHE_VERSION = 1  # bump when the reference's definition changes
+CACHE_VERSION = 2  # bump when the reference's definition changes
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
                "/usr/lib", "/usr/local/lib")
 # Irradiance (directional) or intensity (spot) of pi makes the diffuse radiance albedo * cos
@@ -130,7 +130,7 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
         half = light.fov_deg / 2
         d["light"] = {
             "type": "spot", "cutoff_angle": half, "beam_width": half,
-            "intensity": {"type": "rgb", "value": [LIGHT_POWER] * 3},
+            "intensity": {"type": "rgb", "value": [LIGHT_POWER * light.power_scale] * 3},
             "to_world": mi.ScalarTransform4f().look_at(
                 origin=light.position.tolist(),
                 target=(light.position + light.direction).tolist(),

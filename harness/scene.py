@@ -40,6 +40,13 @@ class Light:
     direction: np.ndarray
     position: np.ndarray | None = None  # spot only
     fov_deg: float | None = None  # spot only: full cone angle
+    aim_distance: float = 1.0  # spot only: |target - position|
+
+    @property
+    def power_scale(self) -> float:
+        """Spot intensity is scaled by the aim distance squared, so the surface it aims at
+        receives about the irradiance a directional light of the same power gives."""
+        return self.aim_distance ** 2 if self.type == "spot" else 1.0
 
     def to_light(self, points: np.ndarray) -> np.ndarray:
         """Unit vectors from surface points toward the light, shape like ``points``."""
@@ -163,7 +170,8 @@ def _light(light) -> Light:
         return Light("directional", d / np.linalg.norm(d))
     pos = np.asarray(light.position, dtype=np.float64)
     d = np.asarray(light.target, dtype=np.float64) - pos
-    return Light("spot", d / np.linalg.norm(d), pos, light.fov)
+    distance = float(np.linalg.norm(d))
+    return Light("spot", d / distance, pos, light.fov, distance)
 
 
 def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:

@@ -62,8 +62,7 @@ class GLContext:
 def get_context(platform: str | None = None) -> GLContext:
     """The process's context, created on first use (platform from $SHADOWBENCH_GL or osmesa)."""
     global _current
-    platform = platform or os.environ.get("SHADOWBENCH_GL") or os.environ.get(
-        "PYOPENGL_PLATFORM", "osmesa")
+    platform = platform or os.environ["PYOPENGL_PLATFORM"]
     if _current is None:
         _current = GLContext(platform)
     elif _current.platform != platform:

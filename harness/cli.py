@@ -1,0 +1,166 @@
+"""shadowbench list | run | reference | report.
+
+Exit codes: 0 all runs ok; 1 some runs failed (their rows say why); 2 bad input (one line on
+stderr naming file and key; nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+from .config import ConfigError
+
+DEFAULT_SCENE_FILE = "scenes.yaml"
+
+
+def _csv_list(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def cmd_list(args) -> int:
+    from . import config, registry
+
+    print("techniques:")
+    for name, cls in registry.techniques().items():
+        print(f"  {name:10s} {cls.summary}  [{cls.paper}]")
+        for pname, field in cls.Params.model_fields.items():
+            limits = " ".join(str(m) for m in field.metadata)
+            annotation = getattr(field.annotation, "__name__", str(field.annotation))
+            print(f"      {pname:12s} default {field.default!r:10s} {annotation} {limits}")
+    path = Path(args.scene_file)
+    if path.is_file():
+        print(f"scenes ({path}):")
+        for name, scene in config.load_scenes(path).items():
+            print(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
+                  f"{scene.light.type} light, {len(scene.objects)} objects, effects "
+                  f"{'+'.join(scene.effects)}")
+    else:
+        print(f"scenes: no scene file at {path}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from . import runner
+
+    plan = runner.plan_runs(
+        experiment_path=args.experiment, scene_file=args.scene_file,
+        scenes=_csv_list(args.scenes) if args.scenes else None,
+        techniques=_csv_list(args.techniques) if args.techniques else None,
+        overrides=runner.parse_overrides(args.set or []))
+    started = time.perf_counter()
+    code = runner.execute(plan, args.out, platform_name=args.platform,
+                          progress=not args.quiet)
+    rows = [r for r in runner.results.read_rows(args.out)]
+    ids = {r.run_id for r in plan.runs}
+    mine = [r for r in rows if r["run_id"] in ids]
+    counts = {s: sum(r["status"] == s for r in mine) for s in ("ok", "skipped", "error")}
+    print(f"{len(mine)} runs in {args.out}/results.csv ({counts['ok']} ok, {counts['skipped']} "
+          f"skipped, {counts['error']} failed) in {time.perf_counter() - started:.1f} s",
+          file=sys.stderr)
+    for r in mine:
+        if r["status"] == "error":
+            print(f"  failed: {r['scene']} {r['technique']} {r['params']}: {r['error']}",
+                  file=sys.stderr)
+    return code
+
+
+def cmd_reference(args) -> int:
+    import numpy as np
+
+    from .reference import compute_reference
+    from .report import visibility_png
+    from .runner import _save_arrays, reference_array_path
+    from .scene import load_scene
+
+    if args.samples < 1 or math.isqrt(args.samples) ** 2 != args.samples:
+        raise ConfigError(f"--samples: must be a square number (1, 4, 16, 64, ...), "
+                          f"got {args.samples}")
+    scene = load_scene(args.scene, args.scene_file)
+    if args.resolution:
+        scene = scene.with_resolution(*args.resolution)
+    ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
+    out = Path(args.out)
+    path = out / reference_array_path(scene.name, scene.width, scene.height)
+    extra = {"direct": ref.direct} if ref.direct is not None else {}
+    _save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
+    visibility_png(ref.visibility, ref.covered, path.with_suffix(".png"))
+    print(f"{path} ({scene.width}x{scene.height}, {args.samples} samples, {ref.variant}, "
+          f"{'cached' if ref.cached else f'{ref.seconds:.2f} s'}; covered "
+          f"{np.mean(ref.covered):.1%}, lit {np.mean(ref.visibility[ref.covered]):.1%})")
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .report import build_report
+
+    index = build_report(args.dir)
+    print(index.resolve())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="shadowbench", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def scene_file(q):
+        q.add_argument("--scene-file", default=DEFAULT_SCENE_FILE,
+                       help="scene file (default ./scenes.yaml)")
+
+    q = sub.add_parser("list", help="techniques with their parameters; scenes")
+    scene_file(q)
+    q.set_defaults(func=cmd_list)
+
+    q = sub.add_parser("run", help="run an experiment (or every technique on every scene)")
+    q.add_argument("experiment", nargs="?", help="experiment YAML (experiments/*.yaml)")
+    scene_file(q)
+    q.add_argument("--scenes", help="comma-separated scene names")
+    q.add_argument("--techniques", help="comma-separated technique names")
+    q.add_argument("--set", action="append", metavar="TECHNIQUE.PARAM=VALUE",
+                   help="override a parameter, e.g. --set pcf.k=16 (repeatable)")
+    q.add_argument("--out", required=True, help="run directory")
+    q.add_argument("--platform", choices=["osmesa", "egl"], default=None,
+                   help="GL platform (default osmesa, or $SHADOWBENCH_GL)")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_run)
+
+    q = sub.add_parser("reference", help="compute (or fetch from cache) a scene's reference")
+    q.add_argument("--scene", required=True)
+    scene_file(q)
+    q.add_argument("--out", required=True)
+    q.add_argument("--samples", type=int, default=16, help="samples per pixel (a square)")
+    q.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
+    q.add_argument("--no-cache", action="store_true")
+    q.set_defaults(func=cmd_reference)
+
+    q = sub.add_parser("report", help="build DIR/index.html from stored results")
+    q.add_argument("dir")
+    q.set_defaults(func=cmd_report)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if getattr(args, "platform", None):
+        os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
+    from .gl.context import BackendError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            return args.func(args)
+    except (ConfigError, BackendError, FileNotFoundError) as e:
+        print(f"shadowbench: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("shadowbench: interrupted; run the same command again to finish", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,142 @@
+"""Error metrics between a technique's visibility V and the reference V_ref.
+
+Small pure functions in the style of ``skimage.metrics``: arrays first, options as keywords,
+shapes checked. ``mask`` selects the pixels compared (covered in both views); ``None`` means all.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+EDGE_WIDTH = 2  # pixels either side of a reference shadow boundary
+
+
+def _check(v: np.ndarray, ref: np.ndarray, mask: np.ndarray | None):
+    v, ref = np.asarray(v, dtype=np.float64), np.asarray(ref, dtype=np.float64)
+    if v.ndim != 2 or v.shape != ref.shape:
+        raise ValueError(f"expected two 2-D arrays of one shape, got {v.shape} and {ref.shape}")
+    if mask is None:
+        mask = np.ones(v.shape, bool)
+    mask = np.asarray(mask)
+    if mask.shape != v.shape or mask.dtype != bool:
+        raise ValueError(f"mask must be bool of shape {v.shape}, got {mask.dtype} {mask.shape}")
+    return v, ref, mask
+
+
+def _mean(values: np.ndarray) -> float:
+    return float(values.mean()) if values.size else float("nan")
+
+
+def mae(v, ref, *, mask=None) -> float:
+    """Mean absolute difference over the masked pixels."""
+    v, ref, mask = _check(v, ref, mask)
+    return _mean(np.abs(v - ref)[mask])
+
+
+def rmse(v, ref, *, mask=None) -> float:
+    v, ref, mask = _check(v, ref, mask)
+    d = (v - ref)[mask]
+    return float(np.sqrt((d * d).mean())) if d.size else float("nan")
+
+
+def wrong_pct(v, ref, *, mask=None, threshold: float = 0.5) -> float:
+    """Percent of masked pixels where |V - V_ref| exceeds ``threshold``."""
+    v, ref, mask = _check(v, ref, mask)
+    d = np.abs(v - ref)[mask]
+    return float(100.0 * (d > threshold).mean()) if d.size else float("nan")
+
+
+def shadow_boundary(ref, *, mask=None) -> np.ndarray:
+    """Pixels on a reference shadow boundary: fractional V_ref, or a 4-neighbour (also in the
+    mask) whose V_ref differs by at least 0.5."""
+    ref = np.asarray(ref, dtype=np.float64)
+    _, ref, mask = _check(ref, ref, mask)
+    boundary = mask & (ref > 0) & (ref < 1)
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis], b[axis] = slice(1, None), slice(None, -1)
+        jump = (np.abs(ref[tuple(a)] - ref[tuple(b)]) >= 0.5) & mask[tuple(a)] & mask[tuple(b)]
+        boundary[tuple(a)] |= jump
+        boundary[tuple(b)] |= jump
+    return boundary
+
+
+def edge_band(ref, *, mask=None, width: int = EDGE_WIDTH) -> np.ndarray:
+    """Masked pixels within ``width`` pixels (Chebyshev distance) of a reference boundary."""
+    _, _, mask = _check(ref, ref, mask)
+    boundary = shadow_boundary(ref, mask=mask)
+    if width > 0:
+        boundary = ndimage.binary_dilation(boundary, structure=np.ones((3, 3), bool),
+                                           iterations=width)
+    return boundary & mask
+
+
+def edge_mae(v, ref, *, mask=None, width: int = EDGE_WIDTH) -> float:
+    """Mean |V - V_ref| within ``width`` pixels of a reference shadow boundary."""
+    v, ref, mask = _check(v, ref, mask)
+    return _mean(np.abs(v - ref)[edge_band(ref, mask=mask, width=width)])
+
+
+def levels(v, ref, *, mask=None, width: int = EDGE_WIDTH, decimals: int = 5) -> int:
+    """Number of distinct V values (rounded to ``decimals``) inside the edge band."""
+    v, ref, mask = _check(v, ref, mask)
+    return int(np.unique(np.round(v[edge_band(ref, mask=mask, width=width)], decimals)).size)
+
+
+def ssim(v, ref, *, mask=None) -> float:
+    """Mean structural similarity (scikit-image, data_range 1) over the masked pixels."""
+    from skimage.metrics import structural_similarity
+
+    v, ref, mask = _check(v, ref, mask)
+    _, full = structural_similarity(ref, v, data_range=1.0, full=True)
+    return _mean(full[mask])
+
+
+def psnr(v, ref, *, mask=None) -> float:
+    """Peak signal-to-noise ratio (scikit-image, data_range 1) of the masked pixels."""
+    from skimage.metrics import peak_signal_noise_ratio
+
+    v, ref, mask = _check(v, ref, mask)
+    if not mask.any():
+        return float("nan")
+    return float(peak_signal_noise_ratio(ref[mask], v[mask], data_range=1.0))
+
+
+def flip(image, reference_image, *, pixels_per_degree: float = 67.0) -> float:
+    """Mean NVIDIA FLIP error of two LDR images (H, W, 3) with values in [0, 1], linear RGB."""
+    import flip_evaluator
+
+    image = np.asarray(image, dtype=np.float32)
+    reference_image = np.asarray(reference_image, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3 or image.shape != reference_image.shape:
+        raise ValueError(f"expected two (H, W, 3) images, got {image.shape} and "
+                         f"{reference_image.shape}")
+    _, mean, _ = flip_evaluator.evaluate(
+        np.clip(reference_image, 0, 1), np.clip(image, 0, 1), "LDR", inputsRGB=False,
+        applyMagma=False, parameters={"ppd": pixels_per_degree})
+    return float(mean)
+
+
+def nonfinite(*arrays) -> int:
+    """Count of NaN and Inf values across the arrays."""
+    return int(sum(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=np.float64)))
+                   for a in arrays))
+
+
+def shade(visibility, normal, position, albedo, light, *, ambient: float) -> np.ndarray:
+    """GL-side shaded image: albedo * (ambient + V * direct Lambert), as RGB (H, W, 3).
+
+    The direct term matches the reference's light power: cos for a directional light,
+    cos * power_scale / r^2 inside the cone for a spot light (``light`` is a :class:`harness.scene.Light`).
+    """
+    to_light = light.to_light(position)
+    cos = np.clip((normal * to_light).sum(-1), 0, None)
+    if light.type == "spot":
+        d = position - light.position
+        r2 = np.maximum((d * d).sum(-1), 1e-12)
+        inside = (d @ light.direction) / np.sqrt(r2) >= np.cos(np.radians(light.fov_deg / 2))
+        cos = np.where(inside, cos * light.power_scale / r2, 0.0)
+    value = albedo * (ambient + np.asarray(visibility) * cos)
+    return np.repeat(value[..., None], 3, axis=2).astype(np.float32)

@@ -1,0 +1,415 @@
+"""Expand sweeps into runs, run them, append one record per run. Resumable.
+
+Each run has a stable id (scene description and resolution, technique, parameters, the
+technique's code version, frames, warm-up and reference settings). Runs whose id is already
+in ``DIR/results.csv`` are skipped, so a killed sweep restarted with the same arguments
+finishes the rest without duplicates.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydantic import ValidationError
+
+from . import config as cfg
+from . import metrics, registry, results
+from .scene import BuiltScene, build_scene
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    scene: str
+    technique: str
+    params: dict  # validated, every parameter present
+    width: int
+    height: int
+    frames: int
+    warmup: int
+    samples: int
+    ref_seed: int = 0
+    scene_key: str = ""
+    code_version: str = ""
+
+    @property
+    def params_json(self) -> str:
+        return json.dumps(self.params, sort_keys=True)
+
+    @property
+    def run_id(self) -> str:
+        text = "|".join(map(str, (self.scene_key, self.width, self.height, self.technique,
+                                  self.params_json, self.code_version, self.frames,
+                                  self.warmup, self.samples, self.ref_seed)))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass
+class Plan:
+    """Validated runs and the scenes they need, ready to execute."""
+
+    runs: list[RunSpec]
+    scenes: dict[str, BuiltScene]
+    experiment_hash: str
+    notes: list[str] = field(default_factory=list)
+
+
+def parse_overrides(values: list[str]) -> dict[str, dict]:
+    """``["pcf.k=16", ...]`` -> ``{"pcf": {"k": 16}}`` (values parsed as YAML scalars)."""
+    out: dict[str, dict] = {}
+    for item in values:
+        key, sep, raw = item.partition("=")
+        technique, dot, param = key.partition(".")
+        if not sep or not dot or not technique or not param:
+            raise cfg.ConfigError(f"--set {item}: expected technique.param=value, e.g. pcf.k=16")
+        out.setdefault(technique, {})[param] = yaml.safe_load(raw)
+    return out
+
+
+def validate_params(technique: str, values: dict, where: str) -> dict:
+    """Validate against the technique's Params; errors name the technique and allowed names."""
+    cls = registry.get(technique)
+    try:
+        return cls.Params(**values).model_dump(mode="json")
+    except ValidationError as e:
+        first = e.errors()[0]
+        name = ".".join(str(p) for p in first["loc"]) or "(parameters)"
+        allowed = ", ".join(cls.Params.model_fields)
+        if first["type"] == "extra_forbidden":
+            msg = f"{technique} has no parameter {name!r}; allowed: {allowed}"
+        else:
+            msg = f"{technique}.{name}: {first['msg'].removeprefix('Value error, ')}"
+        raise cfg.ConfigError(f"{where}: {msg}") from None
+
+
+def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str] | None,
+              techniques: list[str] | None, overrides: dict[str, dict]) -> Plan:
+    """Everything validated up front: a bad input raises ConfigError before any output."""
+    if experiment_path:
+        exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
+        exp_path = Path(experiment_path)
+        if exp.scene_file:
+            scene_file = str(exp_path.parent / exp.scene_file)
+        exp_text = exp_path.read_text()
+    all_scenes = cfg.load_scenes(scene_file)
+    registered = registry.techniques()
+    if not experiment_path:
+        exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
+        node, exp_path, exp_text = None, Path("(command line)"), ""
+
+    wanted_scenes = list(all_scenes) if exp.scenes == "all" else list(exp.scenes)
+    for i, name in enumerate(wanted_scenes):
+        if name not in all_scenes:
+            raise cfg.key_error(exp_path, node, ("scenes", i),
+                                f"no scene {name!r} in {scene_file}; it has "
+                                f"{', '.join(all_scenes)}")
+    if scenes:
+        for name in scenes:
+            if name not in all_scenes:
+                raise cfg.ConfigError(f"--scenes: no scene {name!r} in {scene_file}; it has "
+                                      f"{', '.join(all_scenes)}")
+        wanted_scenes = [s for s in scenes if s in wanted_scenes or not experiment_path]
+
+    grids: dict[str, list[cfg.Grid]] = {}
+    chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
+              else exp.techniques)
+    for name, g in chosen.items():
+        if name not in registered:
+            raise cfg.key_error(exp_path, node, ("techniques", name),
+                                f"unknown technique; registered: {', '.join(registered)}")
+        grids[name] = g if isinstance(g, list) else [g]
+    if techniques:
+        for name in techniques:
+            if name not in registered:
+                raise cfg.ConfigError(f"--techniques: unknown technique {name!r}; registered: "
+                                      f"{', '.join(registered)}")
+        grids = {name: grids.get(name, [cfg.Grid()]) for name in techniques}
+    for name in overrides:
+        if name not in grids:
+            raise cfg.ConfigError(f"--set: technique {name!r} is not in this run "
+                                  f"({', '.join(grids)})")
+
+    built = {name: build_scene(name, all_scenes[name], Path(scene_file))
+             for name in wanted_scenes}
+    runs: list[RunSpec] = []
+    seen: set[str] = set()
+    for scene_name in wanted_scenes:
+        base = built[scene_name]
+        for width, height in exp.resolutions or [base.config.resolution]:
+            scene_at = base.with_resolution(width, height)
+            for tech, tech_grids in grids.items():
+                version = registered[tech].code_version()
+                for gi, grid in enumerate(tech_grids):
+                    for combo in grid.combinations():
+                        where = (f"{exp_path}: techniques.{tech}"
+                                 + (f"[{gi}]" if len(tech_grids) > 1 else ""))
+                        params = validate_params(tech, {**combo, **overrides.get(tech, {})},
+                                                 where if experiment_path else "--set")
+                        spec = RunSpec(scene_name, tech, params, width, height, exp.frames,
+                                       exp.warmup, exp.reference.samples, exp.reference.seed,
+                                       scene_at.key, version)
+                        if spec.run_id not in seen:
+                            seen.add(spec.run_id)
+                            runs.append(spec)
+    exp_hash = hashlib.sha256(
+        (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
+    return Plan(runs, built, exp_hash)
+
+
+def _git_commit() -> str:
+    try:
+        here = Path(__file__).resolve().parent
+        return subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def _cpu() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip() + f" ({os.cpu_count()} logical)"
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _version(module: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(module)
+    except PackageNotFoundError:
+        return ""
+
+
+def write_manifest(out_dir: Path, plan: Plan, context, started: str, finished: str | None):
+    manifest = {
+        "shadowbench": _version("shadowbench"),
+        "versions": {name: _version(dist) for name, dist in (
+            ("pyrender", "scikit-robot-pyrender"), ("PyOpenGL", "PyOpenGL"),
+            ("mitsuba", "mitsuba"), ("drjit", "drjit"), ("numpy", "numpy"),
+            ("trimesh", "trimesh"))},
+        "python": sys.version.split()[0],
+        "gl": {"platform": context.platform, "vendor": context.vendor,
+               "renderer": context.renderer, "version": context.version},
+        "cpu": _cpu(),
+        "git_commit": _git_commit(),
+        "experiment_hash": plan.experiment_hash,
+        "runs_planned": len(plan.runs),
+        "started": started,
+        "finished": finished,
+    }
+    tmp = out_dir / ".manifest.json.tmp"
+    tmp.write_text(json.dumps(manifest, indent=2))
+    os.replace(tmp, out_dir / "manifest.json")
+
+
+def _now() -> str:
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def _save_arrays(path: Path, **arrays) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def _one_line(e: BaseException) -> str:
+    return f"{type(e).__name__}: {' '.join(str(e).split())}"[:500]
+
+
+def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
+            renderer: str) -> tuple[dict, np.ndarray | None]:
+    """Run one technique on a prepared frame: its row and V (None unless it ran).
+
+    Never raises for a technique's failure: that is the row's status and error."""
+    from .gl.measure import PassMeter
+    from .technique import NotApplicable, reset_gl_state
+
+    row = {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
+           "technique": spec.technique, "params": spec.params_json, "width": spec.width,
+           "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
+           "scene_ms": scene_ms, "frags_scene": frags_scene, "renderer": renderer,
+           "code_version": spec.code_version, "ref_samples": spec.samples,
+           "ref_seconds": reference.seconds}
+    cls = registry.get(spec.technique)
+    technique = None
+    frame.meter.release()
+    frame.meter = PassMeter()
+    try:
+        technique = cls(cls.Params(**spec.params))
+        technique.prepare(frame)
+        for i in range(spec.warmup + spec.frames):
+            frame.meter.new_frame(measuring=i >= spec.warmup)
+            output = technique.render(frame)
+    except NotApplicable as e:
+        row.update(status="skipped", error=str(e))
+        return row, None
+    except Exception as e:  # a technique's failure is its row's, not the sweep's
+        row.update(status="error", error=_one_line(e))
+        if os.environ.get("SHADOWBENCH_DEBUG"):
+            traceback.print_exc()
+        return row, None
+    finally:
+        if technique is not None:
+            try:
+                technique.release()
+            except Exception:  # the run's result stands; a failed release only leaks
+                pass
+        reset_gl_state()
+
+    v = output.visibility
+    mask = reference.covered & frame.arrays.covered
+    totals = frame.meter.frame_totals_ms
+    passes = frame.meter.passes()
+    frags_shadow = sum(p.fragments for p in passes)
+    row.update(
+        time_ms=float(np.median(totals)), time_ms_min=min(totals), time_ms_max=max(totals),
+        frags_shadow=frags_shadow, overdraw=frags_shadow / max(frags_scene, 1),
+        mem_bytes=output.mem_bytes, fetches_per_px=output.fetches_per_px,
+        passes=[{"name": p.name, "ms": round(p.ms, 4), "fragments": p.fragments}
+                for p in passes],
+        nonfinite=output.nonfinite + metrics.nonfinite(v),
+        v_min=float(np.nanmin(v)) if v.size else None,
+        v_max=float(np.nanmax(v)) if v.size else None,
+        warnings="; ".join(output.warnings),
+    )
+    v_clean = np.nan_to_num(v, nan=0.5, posinf=1.0, neginf=0.0)
+    ref_v = reference.visibility
+    row.update(
+        mae=metrics.mae(v_clean, ref_v, mask=mask),
+        rmse=metrics.rmse(v_clean, ref_v, mask=mask),
+        wrong_pct=metrics.wrong_pct(v_clean, ref_v, mask=mask),
+        edge_mae=metrics.edge_mae(v_clean, ref_v, mask=mask),
+        levels=metrics.levels(v_clean, ref_v, mask=mask),
+        ssim=metrics.ssim(v_clean, ref_v, mask=mask),
+        psnr=metrics.psnr(v_clean, ref_v, mask=mask),
+    )
+    if reference.direct is not None:
+        a = frame.arrays
+        ambient = frame.scene.config.ambient
+        shaded = metrics.shade(v_clean, a.normal, a.position, a.albedo, frame.scene.light,
+                               ambient=ambient)
+        shaded_ref = reference.direct + (ambient * a.albedo)[..., None]
+        row["flip"] = metrics.flip(shaded, shaded_ref)
+    row.update(output.extra)
+    row["status"] = "ok"
+    return row, v
+
+
+def reference_array_path(scene: str, width: int, height: int) -> Path:
+    return Path("arrays") / scene / f"{width}x{height}" / "reference.npz"
+
+
+def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
+            progress: bool = True) -> int:
+    """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed)."""
+    from tqdm import tqdm
+
+    from .gl.context import get_context
+    from .reference import compute_reference
+    from .technique import Frame
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    context = get_context(platform_name)
+    started = _now()
+    write_manifest(out_dir, plan, context, started, None)
+    done = results.done_ids(out_dir)
+    pending = [r for r in plan.runs if r.run_id not in done]
+    failed = sum(1 for r in results.read_rows(out_dir)
+                 if r["status"] == "error" and r["run_id"] in {s.run_id for s in plan.runs})
+    groups: dict[tuple, list[RunSpec]] = {}
+    for spec in pending:
+        groups.setdefault((spec.scene, spec.width, spec.height, spec.samples, spec.ref_seed),
+                          []).append(spec)
+    bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
+               disable=not progress, file=sys.stderr, dynamic_ncols=True)
+    try:
+        for (scene_name, width, height, samples, ref_seed), specs in groups.items():
+            scene = plan.scenes[scene_name].with_resolution(width, height)
+            bar.set_description(f"{scene_name} {width}x{height}: reference")
+            reference = compute_reference(scene, samples=samples, seed=ref_seed)
+            ref_path = out_dir / reference_array_path(scene_name, width, height)
+            if not ref_path.is_file():
+                _save_arrays(ref_path, visibility=reference.visibility,
+                             covered=reference.covered,
+                             **({"direct": reference.direct} if reference.direct is not None
+                                else {}))
+            frame = Frame(scene, seed=ref_seed)
+            try:
+                frames, warmup = specs[0].frames, specs[0].warmup
+                scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+                for spec in specs:
+                    bar.set_description(f"{scene_name} {width}x{height}: {spec.technique}")
+                    row, v = run_one(spec, frame, reference, scene_ms, frags_scene,
+                                     context.renderer)
+                    if v is not None:
+                        array = reference_array_path(scene_name, width, height).with_name(
+                            f"{spec.technique}-{spec.run_id}.npz")
+                        _save_arrays(out_dir / array, visibility=v.astype(np.float32),
+                                     covered=frame.arrays.covered)
+                        row["array"] = str(array)
+                    row["finished_at"] = _now()
+                    results.append_row(out_dir, row)
+                    failed += row["status"] == "error"
+                    bar.set_postfix(failed=failed, refresh=False)
+                    bar.update(1)
+            finally:
+                frame.release()
+    finally:
+        bar.close()
+        write_manifest(out_dir, plan, context, started, _now())
+    return 1 if failed else 0
+
+
+@dataclass
+class Evaluation:
+    row: dict
+    visibility: np.ndarray | None
+    reference: object  # harness.reference.Reference
+    frame_arrays: object  # harness.gbuffer.GBufferArrays
+
+    @property
+    def mask(self) -> np.ndarray:
+        """Pixels covered in both views: the pixels every metric compares."""
+        return self.reference.covered & self.frame_arrays.covered
+
+
+def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
+             frames: int = 1, warmup: int = 0, samples: int = 16) -> Evaluation:
+    """Run one technique on one scene in this process and score it (for tests, notebooks).
+
+    ``scene`` carries its resolution (``BuiltScene.with_resolution``); the reference comes from
+    the on-disk cache when present.
+    """
+    from .gl.context import get_context
+    from .reference import compute_reference
+    from .technique import Frame
+
+    context = get_context()
+    cls = registry.get(technique)
+    checked = validate_params(technique, params or {}, "evaluate()")
+    spec = RunSpec(scene.name, technique, checked, scene.width, scene.height, frames, warmup,
+                   samples, 0, scene.key, cls.code_version())
+    reference = compute_reference(scene, samples=samples)
+    frame = Frame(scene)
+    try:
+        row, v = run_one(spec, frame, reference, float("nan"), 0, context.renderer)
+        return Evaluation(row, v, reference, frame.arrays)
+    finally:
+        frame.release()
