@@ -56,14 +56,14 @@ class Camera(Strict):
     @model_validator(mode="after")
     def _geometry(self):
         if self.far <= self.near:
-            raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
+            raise ValueError(f"far: must be greater than near ({self.near}), got {self.far}")
         view = np.subtract(self.target, self.position)
         if _norm(view) == 0:
-            raise ValueError("target equals position")
+            raise ValueError("target: equals position")
         if _norm(self.up) == 0:
-            raise ValueError("up is the zero vector")
+            raise ValueError("up: must not be the zero vector")
         if _norm(np.cross(view / _norm(view), np.asarray(self.up) / _norm(self.up))) < 1e-6:
-            raise ValueError("up is parallel to the view direction")
+            raise ValueError("up: is parallel to the view direction")
         return self
 
 
@@ -95,7 +95,7 @@ class SpotLight(Strict):
     @model_validator(mode="after")
     def _aim(self):
         if _norm(np.subtract(self.target, self.position)) == 0:
-            raise ValueError("target equals position")
+            raise ValueError("target: equals position")
         return self
 
 
@@ -277,6 +277,9 @@ def format_validation_error(path: Path, err: ValidationError, root_node, prefix=
         msg = "unknown key"
     elif first["type"] == "missing":
         msg = "required key is missing"
+    field, sep, rest = msg.partition(": ")
+    if sep and field.isidentifier():  # a model-level check naming its field
+        loc, msg = loc + (field,), rest
     keypath = ".".join(str(p) for p in loc)
     line = _line_of(root_node, loc)
     where = f"{path}:{line}" if line else str(path)
@@ -324,19 +327,15 @@ def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile):
     import trimesh
 
     loc = ("scenes", scene_name, "objects", index, "path")
-    line = _line_of(node, loc)
-    where = f"{path}:{line}" if line else str(path)
     mesh_path = resolve_mesh_path(path, obj)
     if not mesh_path.is_file():
-        raise ConfigError(f"{where}: {'.'.join(map(str, loc))}: no such file: {mesh_path}")
+        raise key_error(path, node, loc, f"no such file: {mesh_path}")
     try:
         mesh = trimesh.load(mesh_path, force="mesh")
         if len(mesh.faces) == 0:
             raise ValueError("no triangles")
     except Exception as e:  # trimesh raises many kinds for a bad file
-        raise ConfigError(
-            f"{where}: {'.'.join(map(str, loc))}: cannot load mesh {mesh_path}: {e}"
-        ) from None
+        raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: {e}") from None
 
 
 # --- experiments -----------------------------------------------------------------------------

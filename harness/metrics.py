@@ -85,13 +85,19 @@ def levels(v, ref, *, mask=None, width: int = EDGE_WIDTH, decimals: int = 5) -> 
     return int(np.unique(np.round(v[edge_band(ref, mask=mask, width=width)], decimals)).size)
 
 
-def ssim(v, ref, *, mask=None) -> float:
-    """Mean structural similarity (scikit-image, data_range 1) over the masked pixels."""
+def ssim(v, ref, *, mask=None, win_size: int = 7) -> float:
+    """Mean structural similarity (scikit-image, data_range 1) over the masked pixels.
+
+    Like scikit-image's own mean, a border of win_size // 2 pixels is left out.
+    """
     from skimage.metrics import structural_similarity
 
     v, ref, mask = _check(v, ref, mask)
-    _, full = structural_similarity(ref, v, data_range=1.0, full=True)
-    return _mean(full[mask])
+    _, full = structural_similarity(ref, v, data_range=1.0, full=True, win_size=win_size)
+    pad = win_size // 2
+    inner = np.zeros_like(mask)
+    inner[pad:-pad, pad:-pad] = mask[pad:-pad, pad:-pad]
+    return _mean(full[inner])
 
 
 def psnr(v, ref, *, mask=None) -> float:

@@ -2,8 +2,8 @@
 
 Per pixel, ``samples`` jittered stratified primary rays from the matched camera; from each hit
 one shadow ray toward the spot light's position or against the directional light's direction.
-V_ref is the lit fraction of the samples that hit geometry; a pixel is covered when at least
-half its samples hit. When the scene's effects include ``direct``, Mitsuba's ``direct``
+V_ref is the lit fraction of the samples that hit geometry. A pixel is covered when the ray
+through its centre hits geometry, exactly the GL rasteriser's coverage rule. When the scene's effects include ``direct``, Mitsuba's ``direct``
 integrator (delta light, diffuse BSDFs, no indirect light) renders the shaded image too.
 Results are cached on disk under a hash of the scene, resolution, samples and Mitsuba version.
 """
@@ -24,7 +24,7 @@ import numpy as np
 
 from .scene import BuiltScene
 
-CACHE_VERSION = 2  # bump when the reference's definition changes
+CACHE_VERSION = 3  # bump when the reference's definition changes
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
                "/usr/lib", "/usr/local/lib")
 # Irradiance (directional) or intensity (spot) of pi makes the diffuse radiance albedo * cos
@@ -95,8 +95,10 @@ def _mitsuba(variant: str):
 def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float):
     mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, np.float32).ravel())
-    params["faces"] = mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
+    # the buffers' own types: mi.Float in the JIT variants, dynamic arrays in scalar ones
+    for key, array in (("vertex_positions", np.asarray(vertices, np.float32)),
+                       ("faces", np.asarray(faces, np.uint32))):
+        params[key] = type(params[key])(np.ascontiguousarray(array).ravel())
     params.update()
     mesh.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                    "value": [albedo] * 3}}))
@@ -231,7 +233,9 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
         lits.append(lit.reshape(-1, samples))
     hit_count = np.concatenate(hits).sum(1).reshape(h, w)
     lit_count = np.concatenate(lits).sum(1).reshape(h, w)
-    covered = hit_count * 2 >= samples
+    ys, xs = np.mgrid[0:h, 0:w]
+    centres = np.stack([(xs.ravel() + 0.5) / w, (ys.ravel() + 0.5) / h], 1).astype(np.float32)
+    covered = trace(mi, mscene, scene, centres)[0].reshape(h, w)
     visibility = np.where(hit_count > 0, lit_count / np.maximum(hit_count, 1), 1.0)
     direct = None
     if "direct" in scene.config.effects:

@@ -1,0 +1,100 @@
+"""sm and pcf against the reference and against each other (issue: foundation, section 8)."""
+
+import numpy as np
+import pytest
+
+RESOLUTIONS = (256, 512, 1024, 2048)
+
+
+@pytest.mark.parametrize("scene", ["box_plane", "sphere_plane"])
+def test_sm_error_falls_as_map_resolution_grows(scene, scene_at, evaluate):
+    rows = [evaluate(scene_at(scene, 384), "sm", {"res": res}).row for res in RESOLUTIONS]
+    maes = [r["mae"] for r in rows]
+    edges = [r["edge_mae"] for r in rows]
+    assert all(a > b for a, b in zip(maes, maes[1:])), maes
+    assert all(a > b for a, b in zip(edges, edges[1:])), edges
+
+
+@pytest.mark.parametrize("scene", ["box_plane", "sphere_plane"])
+def test_pcf_single_grid_sample_is_the_shadow_map(scene, scene_at, evaluate):
+    s = scene_at(scene, 192)
+    sm = evaluate(s, "sm", {"res": 512, "bias": 0.03, "slope_bias": 0.0})
+    pcf = evaluate(s, "pcf", {"res": 512, "k": 1, "sampling": "grid", "bias_min": 0.03,
+                              "bias_max": 0.03, "slope_bias": 0.0})
+    assert np.array_equal(sm.visibility, pcf.visibility)
+    # and the test is not vacuous: the shadow is there
+    assert 0.01 < 1 - sm.visibility[sm.mask].mean() < 0.9
+
+
+@pytest.mark.parametrize("k", [4, 9, 16])
+@pytest.mark.parametrize("sampling", ["grid", "jitter"])
+def test_pcf_levels_bounded_by_k_plus_one(k, sampling, scene_at, evaluate):
+    e = evaluate(scene_at("box_plane", 192), "pcf", {"k": k, "sampling": sampling})
+    values = np.unique(np.round(e.visibility[e.mask], 6))
+    assert len(values) <= k + 1
+    # every value is a multiple of 1/k: the fraction of k binary comparisons
+    assert np.allclose(values * k, np.round(values * k), atol=1e-4)
+    assert e.row["levels"] <= k + 1
+
+
+def test_pcf_16_reaches_many_levels_on_box_plane(scene_at, evaluate):
+    e = evaluate(scene_at("box_plane", 256), "pcf", {"k": 16})
+    assert e.row["levels"] >= 16 / 2 + 1
+    assert e.row["fetches_per_px"] == 16
+
+
+def test_pcf_jitter_is_seeded(scene_at, evaluate):
+    s = scene_at("sphere_plane", 128)
+    a = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 7}).visibility
+    b = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 7}).visibility
+    c = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 8}).visibility
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_sm_is_binary(scene_at, evaluate):
+    e = evaluate(scene_at("sphere_plane", 128), "sm")
+    assert set(np.unique(e.visibility[e.mask])) == {0.0, 1.0}
+    assert e.row["levels"] == 2
+
+
+def test_bias_acts_no_bias_gives_acne(scene_at, evaluate):
+    s = scene_at("sphere_plane", 192)
+    unbiased = evaluate(s, "sm", {"bias": 0.0, "slope_bias": 0.0}).row
+    biased = evaluate(s, "sm", {"bias": 0.02, "slope_bias": 1.0}).row
+    assert unbiased["wrong_pct"] > 10 * max(biased["wrong_pct"], 0.1)
+    assert unbiased["wrong_pct"] > 5.0  # acne covers a large part of the lit wall
+
+
+def test_pcf_bias_range_is_drawn_per_sample(scene_at, evaluate):
+    """A bias range between 0 and a safe bias leaves partial acne: fractional V on lit areas."""
+    s = scene_at("sphere_plane", 128)
+    e = evaluate(s, "pcf", {"k": 16, "bias_min": 0.0, "bias_max": 0.02, "slope_bias": 0.0})
+    fractional = (e.visibility > 0) & (e.visibility < 1) & e.mask & (e.reference.visibility == 1)
+    assert fractional.mean() > 0.05
+
+
+def test_costs_reported(scene_at, evaluate):
+    s = scene_at("box_plane", 128)
+    sm = evaluate(s, "sm", {"res": 256}).row
+    pcf = evaluate(s, "pcf", {"res": 256, "k": 9}).row
+    assert sm["fetches_per_px"] == 1 and pcf["fetches_per_px"] == 9
+    # R32F map plus its 32-bit depth+stencil attachment
+    assert sm["mem_bytes"] == 256 * 256 * 8
+    names = [p["name"] for p in sm["passes"]]
+    assert names == ["shadow_map", "shading"]
+    shading = sm["passes"][1]
+    assert shading["fragments"] == 128 * 128  # one full-screen fragment per pixel
+    assert sm["time_ms"] > 0 and sm["nonfinite"] == 0
+
+
+def test_spot_light_outside_its_cone_counts_as_lit(scene_at, evaluate):
+    """Reeves et al.: regions outside the light's field of view are not in shadow."""
+    s = scene_at("sphere_plane", 128)
+    e = evaluate(s, "sm")
+    light = s.light
+    d = e.frame_arrays.position - light.position
+    cos = (d @ light.direction) / np.linalg.norm(d, axis=-1)
+    outside = e.frame_arrays.covered & (cos < np.cos(np.radians(light.fov_deg / 2)) - 0.02)
+    assert outside.sum() > 100  # the wall extends past the cone in this view
+    assert np.all(e.visibility[outside] == 1.0)
