@@ -57,20 +57,22 @@ def _llvm_libraries() -> list[tuple[int, str]]:
     return sorted(found, reverse=True)
 
 
-def choose_variant(prefer_cuda: bool = False) -> str:
+def choose_variant() -> str:
     """Pick a Mitsuba variant without loading one that would abort the process.
 
-    Dr.Jit's LLVM backend aborts (uncatchably) with LLVM 15 or older, so ``llvm_ad_rgb`` is
-    chosen only when an LLVM >= 16 library exists, and Dr.Jit is pointed at it.
+    ``cuda_ad_rgb`` when Dr.Jit finds a CUDA device; else ``llvm_ad_rgb`` when an LLVM >= 16
+    library exists (Dr.Jit's LLVM backend aborts, uncatchably, with LLVM 15 or older), and
+    Dr.Jit is pointed at it; else ``scalar_rgb`` with a warning.
+    ``$SHADOWBENCH_MITSUBA_VARIANT`` forces a variant.
     """
+    import drjit as dr
     import mitsuba as mi
 
-    if prefer_cuda and "cuda_ad_rgb" in mi.variants():
-        try:
-            mi.set_variant("cuda_ad_rgb")
-            return "cuda_ad_rgb"
-        except Exception:  # no CUDA device or driver: fall through to the CPU variants
-            pass
+    forced = os.environ.get("SHADOWBENCH_MITSUBA_VARIANT")
+    if forced:
+        return forced
+    if "cuda_ad_rgb" in mi.variants() and dr.has_backend(dr.JitBackend.CUDA):
+        return "cuda_ad_rgb"
     chosen = os.environ.get("DRJIT_LIBLLVM_PATH")
     libraries = _llvm_libraries()
     if not chosen and libraries and libraries[0][0] >= 16:

@@ -22,7 +22,7 @@ from pydantic import BaseModel, ConfigDict
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
-from .gl.measure import PassMeter
+from .gl.measure import PassMeter, default_timer
 from .gl.shaders import HARNESS_GLSL, Program
 from .scene import BuiltScene
 from .transforms import camera_matrices
@@ -101,9 +101,16 @@ class Frame:
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
-        self.meter = PassMeter()
+        self.timer = default_timer(GL.glGetString(GL.GL_RENDERER).decode())
+        self.meter = PassMeter(self.timer)
         self.gbuffer.render(self.geometry, self.camera.view_proj)
         self.arrays = self.gbuffer.read()
+
+    def new_meter(self) -> PassMeter:
+        """Start a fresh pass record (one per run)."""
+        self.meter.release()
+        self.meter = PassMeter(self.timer)
+        return self.meter
 
     def measure(self, name: str):
         """Context manager around one pass: times it and counts its fragments."""
@@ -134,7 +141,7 @@ class Frame:
 
     def measure_scene_pass(self, frames: int, warmup: int):
         """Time the G-buffer pass alone: the no-shadow cost. Returns (median ms, fragments)."""
-        meter = PassMeter()
+        meter = PassMeter(self.timer)
         for i in range(warmup + frames):
             meter.new_frame(i >= warmup)
             with meter.measure("scene"):
