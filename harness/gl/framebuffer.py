@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from OpenGL import GL
+from OpenGL import GL, images
+
+# PyOpenGL 3.1.10 lacks the component count of two-channel reads (glReadPixels with GL_RG).
+images.COMPONENT_COUNTS.setdefault(GL.GL_RG, 2)
 
 # internal format -> (format, type, channels, bytes per texel)
 FORMATS = {

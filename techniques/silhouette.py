@@ -1,0 +1,170 @@
+"""Shadow silhouette maps (Sen, Cammarano, Hanrahan 2003)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from OpenGL import GL
+from pydantic import Field
+
+from harness.gl.framebuffer import Framebuffer
+from harness.gl.geometry import VertexArray
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.transforms import LightFrustum, fit_light
+
+from .shadowmap import LightDepthMap
+from .silhouette_edges import VERTEX_SIZES, EdgeAdjacency, edge_quads, project_edges
+
+# Clear value of the silhouette map: a texel no silhouette crosses holds its centre.
+EMPTY_POINT = (0.5, 0.5, 0.0, 0.0)
+
+# Bytes the paper's bandwidth model charges: one depth value per pixel, and 24 bytes
+# (3 silhouette points of 8 bytes, after texture-cache reuse) per silhouette-path pixel.
+MODEL_DEPTH_BYTES = 4
+MODEL_SILHOUETTE_BYTES = 24
+DEPTH_FETCHES = 4
+SILHOUETTE_FETCHES = 5
+
+
+def half_texel_offset(frustum: LightFrustum, res: int) -> LightFrustum:
+    """The same light projection moved half a texel in x and y, so that texel (i, j) of a map
+    made with it samples the corner (i, j) of texel (i, j) of a map made with ``frustum``."""
+    shift = np.eye(4)
+    shift[0, 3] = shift[1, 3] = 1.0 / res  # half a texel in NDC, times w
+    return dataclasses.replace(frustum, proj=shift @ frustum.proj)
+
+
+class SilhouetteMap(Technique):
+    """A depth map plus a silhouette map: a piecewise-linear shadow boundary instead of the
+    piecewise-constant one of a shadow map.
+
+    Per frame: silhouette edges from the light (a light-facing and a back-facing face, or a
+    boundary edge of an open mesh) are found on the CPU from an edge-adjacency table built in
+    ``prepare``. Three passes, each timed:
+
+    * ``depth_map``: linear light depth, the projection offset half a texel so its samples
+      sit at the corners of silhouette-map texels;
+    * ``silhouette_map``: the edge search on the CPU and the upload of one thin quad per edge,
+      then a RG32F map of one point per texel (texel-local [0,1]^2, empty texels hold the
+      centre): endpoint in the texel, else the diagonal intersections (one: it, two: their
+      midpoint, none: discard), enlarged near corners and clamped; points farther from the
+      light than all four corner depths (minus ``bias``) are discarded as hidden;
+    * ``shading``: four corner depth tests; where they disagree, the skewed-quadrant
+      reconstruction from the texel's point and its four neighbours' (eight line tests).
+
+    Extra result columns: ``sil_pct`` (percent of shaded pixels that took the silhouette path,
+    counted by atomic counters in the shading pass), ``model_bytes_per_px`` (4 + 24 P, the
+    paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges``.
+    ``fetches_per_px`` = 4 + 5 P; ``mem_bytes`` = depth map (with its depth buffer) +
+    silhouette map.
+
+    ==================  ==============================================  =======  ===========
+    Parameter           Meaning                                         Default  Range
+    ==================  ==============================================  =======  ===========
+    ``res``             width and height of both maps, texels           1024     16 .. 8192
+    ``bias``            constant depth bias, scene units                0.02     >= 0
+    ``slope_bias``      slope-scaled bias, texels x tan(incidence),     1.0      >= 0
+                        as in ``sm``
+    ``center_points``   debug: store every silhouette point at its      false
+                        texel's centre (the paper's degenerate case,
+                        equal to a shadow map on the offset depth map)
+    ==================  ==============================================  =======  ===========
+    """
+
+    name = "silhouette"
+    summary = "silhouette map: depth map plus one silhouette point per texel, piecewise-linear edges"
+    paper = "Sen, Cammarano, Hanrahan 2003, Shadow silhouette maps"
+
+    class Params(TechniqueParams):
+        res: int = Field(1024, ge=16, le=8192)
+        bias: float = Field(0.02, ge=0)
+        slope_bias: float = Field(1.0, ge=0)
+        center_points: bool = False
+
+    def prepare(self, frame: Frame) -> None:
+        res = self.params.res
+        self.frustum = fit_light(frame.scene, res)
+        self.depth_map = LightDepthMap(frame, res, half_texel_offset(self.frustum, res))
+        self.silhouette_fbo = Framebuffer(res, res, (GL.GL_RG32F,), depth=False)
+        self.adjacency = EdgeAdjacency(frame.scene)
+        self.quads = VertexArray(np.zeros((0, sum(VERTEX_SIZES)), np.float32), VERTEX_SIZES)
+        self.map_program = Technique.shader(__file__, "silhouette_map.vert.glsl",
+                                            "silhouette_map.frag.glsl")
+        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl",
+                                        "silhouette_shading.frag.glsl")
+        self.counters = GL.glGenBuffers(1)
+        self.edge_count = 0
+        self.counted_pixels = (0, 0)
+
+    def _draw_silhouette_map(self, frame: Frame) -> None:
+        res = self.params.res
+        texel, depth = project_edges(self.adjacency.silhouette(frame.scene.light),
+                                     self.frustum, res)
+        self.edge_count = len(texel)
+        self.quads.update(edge_quads(texel, depth))
+        self.silhouette_fbo.clear(EMPTY_POINT)
+        GL.glDisable(GL.GL_DEPTH_TEST)
+        GL.glDisable(GL.GL_BLEND)
+        GL.glDisable(GL.GL_CULL_FACE)
+        self.map_program.use()
+        self.map_program.set(**self.depth_map.lookup_uniforms(0, 0.0, frame))
+        self.map_program.set(bias=self.params.bias, center_points=self.params.center_points)
+        self.quads.draw()
+
+    def _shade(self, frame: Frame) -> None:
+        p = self.params
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, self.counters)
+        GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 8, np.zeros(2, np.uint32),
+                        GL.GL_DYNAMIC_READ)
+        GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, self.counters)
+        frame.begin_visibility()
+        self.shading.use()
+        unit = frame.bind_gbuffer(self.shading)
+        self.shading.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
+        self.shading.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1),
+                         bias=p.bias)
+        frame.draw_fullscreen()
+
+    def _read_counters(self) -> tuple[int, int]:
+        """(shaded pixels, pixels that took the silhouette path) of the last shading pass."""
+        GL.glMemoryBarrier(GL.GL_BUFFER_UPDATE_BARRIER_BIT)
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, self.counters)
+        raw = GL.glGetBufferSubData(GL.GL_ATOMIC_COUNTER_BUFFER, 0, 8)
+        shaded, silhouette = np.frombuffer(bytes(raw), np.uint32)
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
+        return int(shaded), int(silhouette)
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        with frame.measure("depth_map"):
+            self.depth_map.render(frame)
+        with frame.measure("silhouette_map"):
+            self._draw_silhouette_map(frame)
+        with frame.measure("shading"):
+            self._shade(frame)
+        self.counted_pixels = self._read_counters()
+        shaded, silhouette = self.counted_pixels
+        share = silhouette / max(shaded, 1)
+        return frame.output(
+            mem_bytes=self.depth_map.mem_bytes + self.silhouette_fbo.nbytes,
+            fetches_per_px=DEPTH_FETCHES + SILHOUETTE_FETCHES * share,
+            nonfinite=self.depth_map.nonfinite,
+            extra={"sil_pct": 100.0 * share,
+                   "model_bytes_per_px": MODEL_DEPTH_BYTES + MODEL_SILHOUETTE_BYTES * share,
+                   "silhouette_edges": self.edge_count})
+
+    def silhouette_points(self) -> np.ndarray:
+        """The silhouette map as (res, res, 2) texel-local points, row j = map row j."""
+        # Framebuffer.read cannot read RG (PyOpenGL has no component count for GL_RG)
+        self.silhouette_fbo.bind()
+        GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
+        res = self.params.res
+        return np.stack([np.asarray(GL.glReadPixels(0, 0, res, res, channel, GL.GL_FLOAT),
+                                    np.float32).reshape(res, res)
+                         for channel in (GL.GL_RED, GL.GL_GREEN)], axis=2)
+
+    def release(self) -> None:
+        for resource in (self.depth_map, self.silhouette_fbo, self.quads, self.map_program,
+                         self.shading):
+            resource.release()
+        GL.glDeleteBuffers(1, [self.counters])

@@ -1,0 +1,92 @@
+"""Silhouette edges seen from the light, and the thin quads that rasterise them into a
+silhouette map (Sen, Cammarano, Hanrahan 2003, sections 2 and 3.1). A helper, not a technique."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.scene import BuiltScene, Light
+from harness.transforms import LightFrustum
+
+# Half-width and end extension of an edge's quad, in texels. A texel the segment crosses has
+# its centre within sqrt(2)/2 of the segment, so a quad this wide covers that centre.
+QUAD_HALF_WIDTH = 0.75
+
+# Floats per quad vertex: position (2), segment endpoints A and B (2 + 2), their depths (2).
+VERTEX_FLOATS = 8
+VERTEX_SIZES = (2, 2, 2, 2)
+
+
+class EdgeAdjacency:
+    """Every edge of the scene's meshes with the faces around it, built once per scene.
+
+    Vertices are merged per part (``MeshPart``), so an interior edge has two faces and a
+    boundary edge of an open mesh has one.
+    """
+
+    def __init__(self, scene: BuiltScene):
+        offsets = np.cumsum([0] + [len(p.vertices) for p in scene.parts[:-1]])
+        self.vertices = np.concatenate([p.vertices for p in scene.parts]).astype(np.float64)
+        faces = np.concatenate([p.faces + o for p, o in zip(scene.parts, offsets)])
+        corner = self.vertices[faces]
+        self.face_normals = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+        self.face_centroids = corner.mean(axis=1)
+        half_edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        self.edges, self.edge_of_half, self.faces_per_edge = np.unique(
+            half_edges, axis=0, return_inverse=True, return_counts=True)
+        self.edge_of_half = self.edge_of_half.ravel()
+        self.face_of_half = np.repeat(np.arange(len(faces)), 3)
+
+    def silhouette(self, light: Light) -> np.ndarray:
+        """Endpoints (E, 2, 3) of the edges between a light-facing and a back-facing face,
+        plus the boundary edges of open meshes."""
+        if light.type == "directional":
+            to_light = -light.direction[None, :]
+        else:
+            to_light = light.position[None, :] - self.face_centroids
+        facing = np.einsum("ij,ij->i", self.face_normals, np.broadcast_to(
+            to_light, self.face_normals.shape)) > 0
+        facing_per_edge = np.bincount(self.edge_of_half, weights=facing[self.face_of_half],
+                                      minlength=len(self.edges))
+        mixed = (facing_per_edge > 0) & (facing_per_edge < self.faces_per_edge)
+        keep = mixed | (self.faces_per_edge == 1)
+        return self.vertices[self.edges[keep]]
+
+
+def project_edges(endpoints: np.ndarray, frustum: LightFrustum,
+                  res: int) -> tuple[np.ndarray, np.ndarray]:
+    """Map-texel coordinates (E, 2, 2) and light depths (E, 2) of the edges, clipped to the
+    near plane (perspective lights); edges wholly behind it are dropped."""
+    view = endpoints @ frustum.view[:3, :3].T + frustum.view[:3, 3]
+    depth = -view[..., 2]
+    near = frustum.near
+    behind = depth < near
+    view, depth = view[~behind.all(axis=1)], depth[~behind.all(axis=1)]
+    for end in (0, 1):
+        clip = depth[:, end] < near
+        other = 1 - end
+        t = (near - depth[clip, end]) / (depth[clip, other] - depth[clip, end])
+        view[clip, end] += t[:, None] * (view[clip, other] - view[clip, end])
+        depth[clip, end] = near
+    clip = np.concatenate([view, np.ones(view.shape[:-1] + (1,))], axis=-1) @ frustum.proj.T
+    ndc = clip[..., :2] / clip[..., 3:4]
+    return (ndc * 0.5 + 0.5) * res, depth
+
+
+def edge_quads(texel: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """Two triangles per edge (E * 6 vertices of VERTEX_FLOATS floats): the segment widened
+    perpendicular and lengthened at both ends by QUAD_HALF_WIDTH texels, each vertex carrying
+    both endpoints and their depths for the fragment shader."""
+    a, b = texel[:, 0], texel[:, 1]
+    along = b - a
+    length = np.linalg.norm(along, axis=1, keepdims=True)
+    # an edge seen end-on from the light projects to a point: any direction covers it
+    along = np.where(length > 1e-9, along / np.maximum(length, 1e-9), [1.0, 0.0])
+    across = np.stack([-along[:, 1], along[:, 0]], axis=1)
+    e = QUAD_HALF_WIDTH
+    corners = np.stack([a - e * along - e * across, b + e * along - e * across,
+                        b + e * along + e * across, a - e * along + e * across], axis=1)
+    triangles = corners[:, [0, 1, 2, 0, 2, 3]]
+    per_edge = np.concatenate([a, b, depth], axis=1)
+    return np.concatenate([triangles, np.repeat(per_edge[:, None, :], 6, axis=1)],
+                          axis=2).astype(np.float32).reshape(-1, VERTEX_FLOATS)
