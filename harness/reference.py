@@ -24,7 +24,7 @@ import numpy as np
 
 from .scene import BuiltScene
 
-CACHE_VERSION = 3  # bump when the reference's definition changes
+CACHE_VERSION = 4  # bump when the reference's definition changes
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
                "/usr/lib", "/usr/local/lib")
 # Irradiance (directional) or intensity (spot) of pi makes the diffuse radiance albedo * cos
@@ -107,9 +107,22 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float)
     return mesh
 
 
+def mitsuba_origin(scene: BuiltScene) -> np.ndarray:
+    """Where Mitsuba's world origin sits in scene coordinates: the centre of the bounds.
+
+    Mitsuba traces in float32 and offsets shadow rays by an epsilon relative to the magnitude
+    of the coordinates; around 1e5 that offset reaches a scene unit and shadows go missing.
+    Visibility is translation invariant, so the reference traces the scene moved next to the
+    origin (the same float32 vertices, shifted in float64 exactly).
+    """
+    return np.round(scene.bounds.mean(axis=0))
+
+
 def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> dict:
-    """The scene for Mitsuba: the same meshes, the matched camera, the delta light."""
+    """The scene for Mitsuba: the same meshes, the matched camera, the delta light,
+    translated by ``-mitsuba_origin(scene)``."""
     cam = scene.config.camera
+    origin = mitsuba_origin(scene)
     d: dict = {
         "type": "scene",
         "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
@@ -119,8 +132,9 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
             "fov": cam.yfov,
             "near_clip": cam.near,
             "far_clip": cam.far,
-            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position, target=cam.target,
-                                                       up=cam.up),
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=(np.asarray(cam.position) - origin).tolist(),
+                target=(np.asarray(cam.target) - origin).tolist(), up=cam.up),
             "film": {"type": "hdrfilm", "width": scene.width, "height": scene.height,
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
             "sampler": {"type": "stratified", "sample_count": samples, "seed": seed},
@@ -136,12 +150,13 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
             "type": "spot", "cutoff_angle": half, "beam_width": half,
             "intensity": {"type": "rgb", "value": [LIGHT_POWER * light.power_scale] * 3},
             "to_world": mi.ScalarTransform4f().look_at(
-                origin=light.position.tolist(),
-                target=(light.position + light.direction).tolist(),
+                origin=(light.position - origin).tolist(),
+                target=(light.position - origin + light.direction).tolist(),
                 up=_up_for(light.direction).tolist()),
         }
     for i, part in enumerate(scene.parts):
-        d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", part.vertices, part.faces, part.albedo)
+        vertices = part.vertices.astype(np.float64) - origin
+        d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", vertices, part.faces, part.albedo)
     return d
 
 
@@ -163,6 +178,13 @@ def _sample_positions(width: int, height: int, samples: int, rows: slice, seed: 
     return np.stack([px.ravel(), py.ravel()], axis=1).astype(np.float32)
 
 
+def _shadow_ray(mi, si, scene: BuiltScene):
+    light = scene.light
+    if light.type == "directional":
+        return si.spawn_ray(mi.Vector3f(*(-light.direction).tolist()))
+    return si.spawn_ray_to(mi.Point3f(*(light.position - mitsuba_origin(scene)).tolist()))
+
+
 def _trace_visibility(mi, mscene, scene: BuiltScene, positions: np.ndarray):
     """(hit, lit) booleans for the film positions, with Mitsuba's vectorised ray queries."""
     sensor = mscene.sensors()[0]
@@ -172,12 +194,7 @@ def _trace_visibility(mi, mscene, scene: BuiltScene, positions: np.ndarray):
                                           np.full(n, 0.5, np.float32)))
     si = mscene.ray_intersect(ray)
     hit = si.is_valid()
-    light = scene.light
-    if light.type == "directional":
-        shadow_ray = si.spawn_ray(mi.Vector3f(*(-light.direction).tolist()))
-    else:
-        shadow_ray = si.spawn_ray_to(mi.Point3f(*light.position.tolist()))
-    occluded = mscene.ray_test(shadow_ray, hit)
+    occluded = mscene.ray_test(_shadow_ray(mi, si, scene), hit)
     return np.asarray(hit, dtype=bool), np.asarray(hit & ~occluded, dtype=bool)
 
 
@@ -185,18 +202,13 @@ def _trace_visibility_scalar(mi, mscene, scene: BuiltScene, positions: np.ndarra
     sensor = mscene.sensors()[0]
     hit = np.zeros(len(positions), bool)
     lit = np.zeros(len(positions), bool)
-    light = scene.light
     for i, (x, y) in enumerate(positions):
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(x, y), mi.Point2f(0.5, 0.5))
         si = mscene.ray_intersect(ray)
         if not si.is_valid():
             continue
         hit[i] = True
-        if light.type == "directional":
-            shadow_ray = si.spawn_ray(mi.Vector3f(*(-light.direction).tolist()))
-        else:
-            shadow_ray = si.spawn_ray_to(mi.Point3f(*light.position.tolist()))
-        lit[i] = not mscene.ray_test(shadow_ray)
+        lit[i] = not mscene.ray_test(_shadow_ray(mi, si, scene))
     return hit, lit
 
 

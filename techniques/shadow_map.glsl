@@ -36,9 +36,16 @@ float slope_scaled_bias(vec3 normal, vec3 world, float depth) {
     return slope_bias * texel * tan_theta;
 }
 
-// 1 = lit. Samples outside the map count as lit (Reeves et al.'s convention).
+// The map cell holding continuous map coordinates; false outside the map, where samples count
+// as lit (Reeves et al.'s convention).
+bool map_cell(vec2 texel, out ivec2 cell) {
+    cell = ivec2(floor(texel));
+    return all(greaterThanEqual(cell, ivec2(0))) && all(lessThan(cell, ivec2(int(map_res))));
+}
+
+// 1 = lit.
 float depth_test(vec2 texel, float depth, float bias) {
-    ivec2 t = ivec2(floor(texel));
-    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(int(map_res))))) return 1.0;
+    ivec2 t;
+    if (!map_cell(texel, t)) return 1.0;
     return depth - bias > texelFetch(shadow_map, t, 0).r ? 0.0 : 1.0;
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from OpenGL import GL
 
-from harness.gl.framebuffer import Framebuffer
+from harness.gl.framebuffer import Framebuffer, Texture
 from harness.technique import Frame, Technique
 from harness.transforms import LightFrustum, fit_light
 
@@ -38,13 +38,18 @@ class LightDepthMap:
         self.program.use().set(light_view=self.frustum.view, light_proj=self.frustum.proj)
         frame.draw_scene()
 
-    def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame) -> dict:
-        """Uniforms of shadow_map.glsl, with the map bound to texture ``unit``."""
+    def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame,
+                        texture: Texture | None = None) -> dict:
+        """Uniforms of shadow_map.glsl, with the map bound to texture ``unit``.
+
+        ``texture`` replaces the depth map by another res x res texture on the same frustum
+        (e.g. one holding several depths per cell)."""
         light = frame.scene.light
         vector = (np.append(light.direction, 0.0) if light.type == "directional"
                   else np.append(light.position, 1.0))
         f = self.frustum
-        return dict(shadow_map=self.fbo.colors[0].bind(unit), light_view=f.view,
+        texture = texture or self.fbo.colors[0]
+        return dict(shadow_map=texture.bind(unit), light_view=f.view,
                     light_proj=f.proj, map_res=float(self.res), light_is_ortho=f.is_ortho,
                     texel_world=f.texel_world, light_vector=vector, slope_bias=slope_bias)
 
@@ -54,21 +59,31 @@ class LightDepthMap:
 
 
 class FilteredShadowMap:
-    """Two passes: the light depth map, then full-screen PCF shading into V (pcf.frag.glsl)."""
+    """Two passes: the light depth map, then full-screen PCF shading into V.
 
-    def __init__(self, frame: Frame, res: int):
+    The shading shader is ``pcf.frag.glsl`` unless ``fragment`` names another one built on
+    ``pcf_samples.glsl`` (same grid, its own per-sample test; ``defines`` go to it)."""
+
+    def __init__(self, frame: Frame, res: int, fragment: str = "pcf.frag.glsl", **defines):
         self.map = LightDepthMap(frame, res)
-        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "pcf.frag.glsl")
+        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
     def render(self, frame: Frame, *, grid_n: int, spacing: float, bias_min: float,
                bias_max: float, slope_bias: float, jitter: bool, seed: int) -> None:
         with frame.measure("shadow_map"):
             self.map.render(frame)
+        self.shade(frame, grid_n=grid_n, spacing=spacing, bias_min=bias_min, bias_max=bias_max,
+                   slope_bias=slope_bias, jitter=jitter, seed=seed)
+
+    def shade(self, frame: Frame, *, grid_n: int, spacing: float, bias_min: float,
+              bias_max: float, slope_bias: float, jitter: bool, seed: int,
+              texture: Texture | None = None) -> None:
+        """The shading pass alone, on the map already rendered (or on ``texture``)."""
         with frame.measure("shading"):
             frame.begin_visibility()
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
-            self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame))
+            self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame, texture))
             self.shading.set(grid_n=grid_n, spacing=spacing, bias_min=bias_min,
                              bias_max=bias_max, jitter=jitter)
             GL.glUniform1ui(self.shading.location("seed"), seed)

@@ -1,0 +1,178 @@
+"""Multiple-depth shadow maps and PCF(k, n) (Pagot, Comba, Oliveira).
+
+Shaders: mdsm_select.frag.glsl (selection pass), mdsm_shading.frag.glsl (PCF(k, n) shading,
+built on pcf_samples.glsl and shadow_map.glsl like pcf).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from OpenGL import GL
+from pydantic import Field, field_validator, model_validator
+
+from harness.gl.framebuffer import Framebuffer
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+
+from .shadowmap import FilteredShadowMap
+
+DEPTH_COUNTS = (1, 2, 3, 4)
+WINDOW_SAMPLES = (4, 9, 16, 25)
+KERNEL_SAMPLES = tuple(i * i for i in range(1, 9))  # the square grids pcf accepts
+
+
+class DepthSelection:
+    """The selection pass: a res x res RGBA32F map whose texel holds a cell's n depths, chosen
+    from the q = window^2 base-map samples around the cell (mdsm_select.frag.glsl)."""
+
+    def __init__(self, res: int, n: int, q: int, select: str, extra: str):
+        self.fbo = Framebuffer(res, res, (GL.GL_RGBA32F,), depth=False)
+        self.program = Technique.shader(
+            __file__, "fullscreen.vert.glsl", "mdsm_select.frag.glsl", N_DEPTHS=n,
+            WINDOW=math.isqrt(q), SELECT_SORT=int(select == "sort"),
+            EXTRA_MAX=int(extra == "max"))
+
+    @property
+    def texture(self):
+        return self.fbo.colors[0]
+
+    @property
+    def mem_bytes(self) -> int:
+        return self.fbo.nbytes
+
+    def render(self, frame: Frame, base_map) -> None:
+        self.fbo.bind()
+        GL.glDisable(GL.GL_DEPTH_TEST)
+        GL.glDisable(GL.GL_BLEND)
+        self.program.use().set(base_map=base_map.bind(0))
+        frame.draw_fullscreen()
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.program.release()
+
+
+class MultipleDepthShadowMap(Technique):
+    """An n-SM stores n depths per shadow-map cell in one RGBA32F texel, so one fetch reads all
+    of them; PCF(k, n) filters n-shadow tests on pcf's regular k-sample grid (spacing one texel,
+    centred on the point), giving up to nk + 1 outcomes (the paper's Table 1).
+
+    Passes: ``shadow_map`` (the standard linear-depth map, as sm and pcf), ``mdsm_select`` (one
+    fragment per cell reading q samples of the square window around it: the cell's own depth is
+    always kept; ``minmax`` adds the window's maximum (``extra: max``, the default) or minimum
+    (``extra: min``) for n = 2 and both for n = 3; ``sort`` sorts the q samples into n groups and
+    keeps each group's middle sample, the base depth replacing its own group's), ``shading``
+    (k fetches per pixel). For n = 1 the n-SM is the standard map: no selection pass runs and V
+    equals pcf's with the same k, res and bias.
+
+    The n-shadow test returns the fraction of the cell's n depths that are not closer to the
+    light than the point after bias (1 = lit): n + 1 equally spaced outcomes, exactly Williams'
+    test for n = 1. The paper's printed rule for the shadow coverage (sc = 1 if d > Z_n, else
+    (i - 1)/n with Z_i the largest stored depth smaller than d) is inconsistent with its own
+    descending order Z_1 >= ... >= Z_n: Z_n is the smallest depth, so d > Z_n holds whenever any
+    stored depth is in front of the point and the rule returns full shadow for every partly
+    shadowed point, while its "otherwise" case (d <= every Z_i) has no Z_i smaller than d. The
+    counting definition here is what the text around it and the 2-SM decision tree (Figure 4:
+    0, 0.5, 1) describe.
+
+    Empty map cells hold the clear depth 3e38 (lit); representatives are picked, never averaged,
+    so no depth overflows. Extra result columns: ``select_fetches`` (q x res^2, 0 for n = 1),
+    ``select_fetches_per_cell`` (q or 0), ``shaded_px`` (covered pixels f) and
+    ``shading_fetches`` (f x k), the two terms of the paper's equation 4.
+
+    =================  ================================================  =======  ================
+    Parameter          Meaning                                           Default  Range
+    =================  ================================================  =======  ================
+    ``res``            map width and height, texels                      1024     16 .. 8192
+    ``n``              depths per cell (n-SM)                            2        1, 2, 3, 4
+    ``k``              PCF samples on the regular grid, a square         9        1, 4, 9 .. 64
+    ``q``              selection window samples, a square                9        4, 9, 16, 25
+    ``select``         ``minmax`` (n <= 3) or ``sort``                   minmax
+    ``extra``          n = 2 with minmax only: ``max`` or ``min``        max      max, min
+    ``bias``           constant depth bias, scene units                  0.02     >= 0
+    ``slope_bias``     slope-scaled bias, texels x tan(incidence)        0.0      >= 0
+    =================  ================================================  =======  ================
+    """
+
+    name = "mdsm"
+    summary = "multiple-depth shadow map: n depths per cell, PCF(k, n) with up to nk + 1 levels"
+    paper = "Pagot, Comba, Oliveira, Multiple-Depth Shadow Maps"
+
+    class Params(TechniqueParams):
+        res: int = Field(1024, ge=16, le=8192)
+        n: int = 2
+        k: int = 9
+        q: int = 9
+        select: Literal["minmax", "sort"] = "minmax"
+        extra: Literal["max", "min"] | None = None
+        bias: float = Field(0.02, ge=0)
+        slope_bias: float = Field(0.0, ge=0)
+
+        @field_validator("n")
+        @classmethod
+        def _depth_count(cls, n):
+            if n not in DEPTH_COUNTS:
+                raise ValueError(f"n must be one of {list(DEPTH_COUNTS)}; got {n}")
+            return n
+
+        @field_validator("k")
+        @classmethod
+        def _kernel(cls, k):
+            if k not in KERNEL_SAMPLES:
+                raise ValueError(f"k must be a square number, one of {list(KERNEL_SAMPLES)}; "
+                                 f"got {k}")
+            return k
+
+        @field_validator("q")
+        @classmethod
+        def _window(cls, q):
+            if q not in WINDOW_SAMPLES:
+                raise ValueError(f"q must be a square window, one of {list(WINDOW_SAMPLES)}; "
+                                 f"got {q}")
+            return q
+
+        @model_validator(mode="after")
+        def _combination(self):
+            if self.extra is not None and (self.n != 2 or self.select != "minmax"):
+                raise ValueError(f"extra ({self.extra}) applies only to n=2 with "
+                                 f"select=minmax; got n={self.n}, select={self.select}")
+            if self.select == "minmax" and self.n == 4:
+                raise ValueError("select=minmax allows n in [1, 2, 3] (base, max and/or min); "
+                                 "n=4 needs select=sort")
+            return self
+
+        @property
+        def extra_depth(self) -> str:
+            """The window extreme kept besides the base depth for n = 2 with minmax."""
+            return self.extra or "max"
+
+    def prepare(self, frame: Frame) -> None:
+        p = self.params
+        self.passes = FilteredShadowMap(frame, p.res, "mdsm_shading.frag.glsl", N_DEPTHS=p.n)
+        self.selection = (DepthSelection(p.res, p.n, p.q, p.select, p.extra_depth)
+                          if p.n > 1 else None)
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        p = self.params
+        base = self.passes.map
+        with frame.measure("shadow_map"):
+            base.render(frame)
+        if self.selection:
+            with frame.measure("mdsm_select"):
+                self.selection.render(frame, base.fbo.colors[0])
+        self.passes.shade(frame, grid_n=math.isqrt(p.k), spacing=1.0, bias_min=p.bias,
+                          bias_max=p.bias, slope_bias=p.slope_bias, jitter=False, seed=0,
+                          texture=self.selection.texture if self.selection else None)
+        q = p.q if self.selection else 0
+        shaded = int(frame.arrays.covered.sum())
+        return frame.output(
+            mem_bytes=base.mem_bytes + (self.selection.mem_bytes if self.selection else 0),
+            fetches_per_px=p.k, nonfinite=base.nonfinite,
+            extra={"select_fetches": q * p.res * p.res, "select_fetches_per_cell": q,
+                       "shaded_px": shaded, "shading_fetches": shaded * p.k})
+
+    def release(self) -> None:
+        self.passes.release()
+        if self.selection:
+            self.selection.release()
