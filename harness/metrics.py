@@ -131,6 +131,23 @@ def nonfinite(*arrays) -> int:
                    for a in arrays))
 
 
+def facing_light(normal, position, light, camera_position) -> np.ndarray:
+    """Pixels whose visible side faces the light: n . l > 0, with n turned toward the camera.
+
+    A surface facing away from the light receives no direct light whatever V says there, and
+    techniques legitimately differ on it (shadow volumes shadow it, a biased shadow map may
+    call it lit), so visibility is compared only where the surface faces the light.
+    ``light`` is a :class:`harness.scene.Light`.
+    """
+    normal = np.asarray(normal, dtype=np.float64)
+    position = np.asarray(position, dtype=np.float64)
+    if normal.shape != position.shape or normal.shape[-1:] != (3,):
+        raise ValueError(f"expected normal and position of one (..., 3) shape, got "
+                         f"{normal.shape} and {position.shape}")
+    toward_camera = np.sign((normal * (np.asarray(camera_position) - position)).sum(-1))
+    return (normal * light.to_light(position)).sum(-1) * toward_camera > 0
+
+
 def shade(visibility, normal, position, albedo, light, *, ambient: float) -> np.ndarray:
     """GL-side shaded image: albedo * (ambient + V * direct Lambert), as RGB (H, W, 3).
 

@@ -68,15 +68,11 @@ class Technique:
 
     @classmethod
     def code_version(cls) -> str:
-        """Hash of the module's source and of the .glsl files beside it that the source names."""
+        """Hash of the technique's code: its module, the sibling modules it imports, and the
+        .glsl files any of them names, following ``#include`` (a changed shared helper or
+        shader changes the version, so stored results are not reused)."""
         source_file = Path(inspect.getsourcefile(cls))
-        source = source_file.read_text()
-        h = hashlib.sha256(source.encode())
-        for name in sorted(set(re.findall(r"[\w.]+\.glsl", source))):
-            glsl = source_file.parent / name
-            if glsl.is_file():
-                h.update(glsl.read_bytes())
-        return h.hexdigest()[:12]
+        return hashlib.sha256(b"".join(_code_files(source_file))).hexdigest()[:12]
 
     @staticmethod
     def shader(module_file: str, vertex: str, fragment: str, **defines) -> Program:
@@ -171,3 +167,27 @@ def reset_gl_state() -> None:
     GL.glStencilMask(0xFF)
     while GL.glGetError() != GL.GL_NO_ERROR:
         pass
+
+
+_SIBLING_IMPORT = re.compile(r"^\s*from\s+(?:\.|\w+\.)(\w+)\s+import|^\s*import\s+\w+\.(\w+)",
+                             re.M)
+_GLSL_NAME = re.compile(r"[\w.]+\.glsl")
+
+
+def _code_files(start: Path) -> list[bytes]:
+    """Contents of ``start`` and of the sibling .py and .glsl files it reaches, in a fixed
+    order."""
+    folder, seen, queue = start.parent, set(), [start]
+    while queue:
+        path = queue.pop()
+        if path in seen or not path.is_file():
+            continue
+        seen.add(path)
+        text = path.read_text()
+        names = [f"{a or b}.py" for a, b in _SIBLING_IMPORT.findall(text)] if path.suffix == ".py" \
+            else []
+        names += _GLSL_NAME.findall(text)
+        queue.extend(folder / n for n in names)
+        queue.extend(HARNESS_GLSL / n for n in _GLSL_NAME.findall(text)
+                     if not (folder / n).is_file())
+    return [p.name.encode() + p.read_bytes() for p in sorted(seen)]

@@ -95,3 +95,16 @@ def test_shade_directional_lambert():
                         ambient=0.1)
     assert img[0, 0] == pytest.approx([0.5 * 1.1] * 3)
     assert img[0, 1] == pytest.approx([0.1 + 0.5 * 0.8] * 3)
+
+
+def test_facing_light_turns_normals_toward_the_camera():
+    from harness.scene import Light
+
+    light = Light("directional", np.array([0.0, 0.0, -1.0]))  # light travels down
+    position = np.zeros((1, 3, 3))
+    normal = np.array([[[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]]])
+    above = metrics.facing_light(normal, position, light, camera_position=[0, 0, 5])
+    below = metrics.facing_light(normal, position, light, camera_position=[0, 0, -5])
+    # seen from above, the plane faces the light whichever way its stored normal points
+    assert above.tolist() == [[True, True, False]]
+    assert below.tolist() == [[False, False, False]]
