@@ -32,18 +32,25 @@ $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 test: setup
 	$(PY) -m pytest -q
 
+# Some failed runs (exit 1) still get their dashboard, which shows why; bad input (2) does not.
 bench: setup
-	$(VENV)/bin/shadowbench run $(EXPERIMENT) --out $(OUT)
-	$(VENV)/bin/shadowbench report $(OUT)
+	@$(VENV)/bin/shadowbench run $(EXPERIMENT) --out $(OUT); status=$$?; \
+	if [ $$status -le 1 ]; then $(VENV)/bin/shadowbench report $(OUT) || exit $$?; fi; \
+	exit $$status
 
 report: setup
 	$(VENV)/bin/shadowbench report $(OUT)
 
+# Timings saved as JSON under .benchmarks/<machine>/; compare checks a new run against the last
+# saved one without replacing it.
+BENCH_FLAGS := -q tests/benchmarks --benchmark-only -p no:randomly \
+	--benchmark-columns=min,median,max,stddev,rounds --benchmark-sort=name
+
 microbench: setup
-	$(PY) -m pytest -q tests/benchmarks --benchmark-only --benchmark-autosave -p no:randomly
+	$(PY) -m pytest $(BENCH_FLAGS) --benchmark-autosave
 
 microbench-compare: setup
-	$(PY) -m pytest -q tests/benchmarks --benchmark-only --benchmark-compare --benchmark-autosave
+	$(PY) -m pytest $(BENCH_FLAGS) --benchmark-compare
 
 lint: setup
 	$(VENV)/bin/ruff check harness techniques tests

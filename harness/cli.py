@@ -60,8 +60,10 @@ def cmd_run(args) -> int:
     ids = {r.run_id for r in plan.runs}
     mine = [r for r in rows if r["run_id"] in ids]
     counts = {s: sum(r["status"] == s for r in mine) for s in ("ok", "skipped", "error")}
+    rendered = runner.read_manifest(Path(args.out))["invocations"][-1]["runs_rendered"]
     print(f"{len(mine)} runs in {args.out}/results.csv ({counts['ok']} ok, {counts['skipped']} "
-          f"skipped, {counts['error']} failed) in {time.perf_counter() - started:.1f} s",
+          f"skipped, {counts['error']} failed; {rendered} rendered now, "
+          f"{len(mine) - rendered} already done) in {time.perf_counter() - started:.1f} s",
           file=sys.stderr)
     for r in mine:
         if r["status"] == "error":

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Literal, Union
 
 import numpy as np
 import yaml
@@ -353,6 +353,12 @@ class Grid(Strict):
 
     @model_validator(mode="after")
     def _nonempty(self):
+        kinds = {"product": self.product, "zip": self.zip, "set": self.set}
+        for name in set().union(*kinds.values()):
+            where = [k for k, values in kinds.items() if name in values]
+            if len(where) > 1:
+                raise ValueError(f"parameter {name!r} is in both {' and '.join(where)}; "
+                                 "give each parameter in one of product, zip, set")
         for kind in ("product", "zip"):
             for key, values in getattr(self, kind).items():
                 if not values:
@@ -395,6 +401,13 @@ class Experiment(Strict):
     warmup: int = Field(2, ge=0, le=1000)
     reference: ReferenceSettings = ReferenceSettings()
 
+    @field_validator("scenes")
+    @classmethod
+    def _some_scenes(cls, v):
+        if not v:
+            raise ValueError("must name at least one scene, or be 'all'")
+        return v
+
     @field_validator("techniques")
     @classmethod
     def _some(cls, v):
@@ -416,13 +429,37 @@ class Experiment(Strict):
 
 
 def load_experiment(path: str | Path) -> tuple[Experiment, object]:
-    """Validate an experiment file; returns the model and the YAML root node (for lines)."""
+    """Validate an experiment file; returns the model and the YAML root node (for lines).
+
+    A technique's grid may be empty or null (its defaults), one grid, or a list of grids."""
     path = Path(path)
     data, node = read_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: an experiment is a mapping with at least a 'techniques' key "
+                          f"(see experiments/default.yaml), got {type(data).__name__}")
+    techniques = data.get("techniques")
+    if isinstance(techniques, dict):
+        # each grid on its own, so an error names techniques.<name>... rather than the union
+        data = {**data, "techniques": {name: _grids(path, node, name, grids)
+                                       for name, grids in techniques.items()}}
     try:
         return Experiment.model_validate(data), node
     except ValidationError as e:
         raise ConfigError(format_validation_error(path, e, node)) from None
+
+
+def _grids(path: Path, node, name: str, grids) -> Grid | list[Grid]:
+    if grids is None:
+        return Grid()
+    items = grids if isinstance(grids, list) else [grids]
+    checked = []
+    for i, item in enumerate(items):
+        prefix = ("techniques", name) + ((i,) if isinstance(grids, list) else ())
+        try:
+            checked.append(Grid.model_validate(item))
+        except ValidationError as e:
+            raise ConfigError(format_validation_error(path, e, node, prefix)) from None
+    return checked if isinstance(grids, list) else checked[0]
 
 
 def key_error(path: Path, node, loc: tuple, message: str) -> ConfigError:

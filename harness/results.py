@@ -88,6 +88,8 @@ def load(out_dir: str | Path):
             df[name] = pd.to_numeric(df[name].replace("", None), errors="coerce")
             if kind is int and df[name].notna().all():
                 df[name] = df[name].astype("int64")
+            elif kind is float:  # "8388608" parses as an integer; the column is still float
+                df[name] = df[name].astype("float64")
     df["params"] = df["params"].map(lambda s: json.loads(s) if s else {})
     return df
 

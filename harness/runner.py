@@ -17,6 +17,7 @@ import subprocess
 import sys
 import time
 import traceback
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,6 +63,7 @@ class Plan:
     runs: list[RunSpec]
     scenes: dict[str, BuiltScene]
     experiment_hash: str
+    experiment_path: str = ""
     notes: list[str] = field(default_factory=list)
 
 
@@ -119,7 +121,11 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             if name not in all_scenes:
                 raise cfg.ConfigError(f"--scenes: no scene {name!r} in {scene_file}; it has "
                                       f"{', '.join(all_scenes)}")
-        wanted_scenes = [s for s in scenes if s in wanted_scenes or not experiment_path]
+        outside = [s for s in scenes if s not in wanted_scenes]
+        if experiment_path and outside:
+            raise cfg.ConfigError(f"--scenes: {', '.join(outside)} not in {exp_path} (its scenes: "
+                                  f"{', '.join(wanted_scenes)})")
+        wanted_scenes = list(dict.fromkeys(scenes))
 
     grids: dict[str, list[cfg.Grid]] = {}
     chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
@@ -152,8 +158,10 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                 version = registered[tech].code_version()
                 for gi, grid in enumerate(tech_grids):
                     for combo in grid.combinations():
-                        where = (f"{exp_path}: techniques.{tech}"
-                                 + (f"[{gi}]" if len(tech_grids) > 1 else ""))
+                        loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                        line = cfg._line_of(node, loc) if node is not None else None
+                        where = (f"{exp_path}{f':{line}' if line else ''}: "
+                                 + ".".join(map(str, loc)))
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
                                                  where if experiment_path else "--set")
                         spec = RunSpec(scene_name, tech, params, width, height, exp.frames,
@@ -162,9 +170,11 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                         if spec.run_id not in seen:
                             seen.add(spec.run_id)
                             runs.append(spec)
+    if not runs:
+        raise cfg.ConfigError(f"{exp_path}: nothing to run (no scene x technique combination)")
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
-    return Plan(runs, built, exp_hash)
+    return Plan(runs, built, exp_hash, str(exp_path))
 
 
 def _git_commit() -> str:
@@ -195,7 +205,36 @@ def _version(module: str) -> str:
         return ""
 
 
-def write_manifest(out_dir: Path, plan: Plan, context, started: str, finished: str | None):
+def _git_dirty() -> bool | None:
+    try:
+        here = Path(__file__).resolve().parent
+        out = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                              "--untracked-files=no"], check=False, capture_output=True,
+                             text=True, timeout=10)
+        return bool(out.stdout.strip()) if out.returncode == 0 else None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+MANIFEST_FILE = "manifest.json"
+
+
+def read_manifest(out_dir: Path) -> dict:
+    try:
+        return json.loads((Path(out_dir) / MANIFEST_FILE).read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
+    """Record what produced DIR. ``started`` is the first invocation of this experiment into
+    DIR, ``finished`` the end of the invocation that completed it (None until one does);
+    ``invocations`` lists every start with how many runs it rendered and how it ended."""
+    previous = read_manifest(out_dir)
+    same = previous.get("experiment_hash") == plan.experiment_hash
+    invocations = [i for i in (previous.get("invocations", []) if same else [])
+                   if i.get("started") != session["started"]] + [session]
+    complete = session["status"] == "complete"
     manifest = {
         "shadowbench": _version("shadowbench"),
         "versions": {name: _version(dist) for name, dist in (
@@ -207,14 +246,19 @@ def write_manifest(out_dir: Path, plan: Plan, context, started: str, finished: s
                "renderer": context.renderer, "version": context.version},
         "cpu": _cpu(),
         "git_commit": _git_commit(),
+        "git_dirty": _git_dirty(),
+        "experiment": plan.experiment_path,
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
-        "started": started,
-        "finished": finished,
+        "started": invocations[0]["started"],
+        "finished": (previous.get("finished") if same and previous.get("finished")
+                     else session["finished"] if complete else None),
+        "status": session["status"],
+        "invocations": invocations,
     }
-    tmp = out_dir / ".manifest.json.tmp"
+    tmp = out_dir / f".{MANIFEST_FILE}.tmp"
     tmp.write_text(json.dumps(manifest, indent=2))
-    os.replace(tmp, out_dir / "manifest.json")
+    os.replace(tmp, out_dir / MANIFEST_FILE)
 
 
 def _now() -> str:
@@ -237,7 +281,6 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
     """Run one technique on a prepared frame: its row and V (None unless it ran).
 
     Never raises for a technique's failure: that is the row's status and error."""
-    from .gl.measure import PassMeter
     from .technique import NotApplicable, reset_gl_state
 
     row = {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
@@ -248,8 +291,7 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
            "ref_seconds": reference.seconds}
     cls = registry.get(spec.technique)
     technique = None
-    frame.meter.release()
-    frame.meter = PassMeter()
+    frame.new_meter()
     try:
         technique = cls(cls.Params(**spec.params))
         technique.prepare(frame)
@@ -315,66 +357,129 @@ def reference_array_path(scene: str, width: int, height: int) -> Path:
     return Path("arrays") / scene / f"{width}x{height}" / "reference.npz"
 
 
+@contextmanager
+def _exclusive(out_dir: Path):
+    """Hold DIR's lock: two sweeps appending to one results.csv would lose each other's rows.
+    The kernel drops the lock when the holder dies, so a killed run never leaves DIR locked."""
+    import fcntl
+
+    with (out_dir / ".lock").open("a+") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise cfg.ConfigError(f"{out_dir}: another shadowbench run is writing here; wait "
+                                  "for it or choose another --out") from None
+        yield
+
+
+PROGRESS_FORMAT = "{desc} | {n_fmt}/{total_fmt} runs done{postfix} | {elapsed} elapsed"
+
+
+def _cost(spec: RunSpec) -> float:
+    """Relative time of a run for the estimate of the time left: runs at 1024x1024 take many
+    times those at 256x256, so a plain runs-per-second rate misjudges a multi-resolution sweep.
+    The constant is the per-run overhead, about that of a 256x256 run."""
+    return spec.width * spec.height + 256 * 256
+
+
+def _time_left(elapsed_s: float, done: float, left: float) -> str:
+    seconds = round(elapsed_s / done * left)
+    return f"about {seconds // 60}:{seconds % 60:02d} left"
+
+
 def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
             progress: bool = True) -> int:
-    """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed)."""
-    from tqdm import tqdm
+    """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed).
 
-    from .gl.context import get_context
-    from .reference import compute_reference
-    from .technique import Frame
+    Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
+    at any moment leaves every finished run recorded once and no partial row; the next call
+    with the same plan skips them. Arrays are written before their row: a kill between the two
+    leaves an unreferenced array that the rerun overwrites."""
+    from tqdm import tqdm
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    context = get_context(platform_name)
-    started = _now()
-    write_manifest(out_dir, plan, context, started, None)
-    done = results.done_ids(out_dir)
-    pending = [r for r in plan.runs if r.run_id not in done]
-    failed = sum(1 for r in results.read_rows(out_dir)
-                 if r["status"] == "error" and r["run_id"] in {s.run_id for s in plan.runs})
+    with _exclusive(out_dir):
+        done = results.done_ids(out_dir)
+        pending = [r for r in plan.runs if r.run_id not in done]
+        planned = {s.run_id for s in plan.runs}
+        failed = sum(1 for r in results.read_rows(out_dir)
+                     if r["status"] == "error" and r["run_id"] in planned)
+        from .gl.context import get_context
+
+        context = get_context(platform_name)
+        session = {"started": _now(), "finished": None, "status": "running",
+                   "runs_pending": len(pending), "runs_rendered": 0}
+        write_manifest(out_dir, plan, context, session)
+        bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
+                   disable=not progress, file=sys.stderr, dynamic_ncols=True,
+                   bar_format=PROGRESS_FORMAT, postfix=f"{len(pending)} to go",
+                   desc="" if pending else "nothing to render")
+        cost_left, cost_done, clock = sum(map(_cost, pending)), 0.0, time.monotonic()
+        try:
+            for spec, row in _render(plan, pending, out_dir, context, bar):
+                session["runs_rendered"] += 1
+                failed += row["status"] == "error"
+                cost_done += _cost(spec)
+                cost_left -= _cost(spec)
+                left = bar.total - bar.n - 1
+                bar.set_postfix_str(
+                    f"{left} to go" + (f", {failed} failed" if failed else "")
+                    + (f", {_time_left(time.monotonic() - clock, cost_done, cost_left)}"
+                       if left else ""), refresh=False)
+                bar.update(1)
+            session["status"] = "complete"
+        except KeyboardInterrupt:
+            session["status"] = "interrupted"
+            raise
+        except BaseException:
+            session["status"] = "failed"
+            raise
+        finally:
+            bar.close()
+            session["finished"] = _now()
+            write_manifest(out_dir, plan, context, session)
+    return 1 if failed else 0
+
+
+def _render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
+    """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
+    shared), appending each row as it finishes; yields (spec, row) for each."""
+    from .reference import compute_reference
+    from .technique import Frame
+
     groups: dict[tuple, list[RunSpec]] = {}
     for spec in pending:
         groups.setdefault((spec.scene, spec.width, spec.height, spec.samples, spec.ref_seed),
                           []).append(spec)
-    bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
-               disable=not progress, file=sys.stderr, dynamic_ncols=True)
-    try:
-        for (scene_name, width, height, samples, ref_seed), specs in groups.items():
-            scene = plan.scenes[scene_name].with_resolution(width, height)
-            bar.set_description(f"{scene_name} {width}x{height}: reference")
-            reference = compute_reference(scene, samples=samples, seed=ref_seed)
-            ref_path = out_dir / reference_array_path(scene_name, width, height)
-            if not ref_path.is_file():
-                _save_arrays(ref_path, visibility=reference.visibility,
-                             covered=reference.covered,
-                             **({"direct": reference.direct} if reference.direct is not None
-                                else {}))
-            frame = Frame(scene, seed=ref_seed)
-            try:
-                frames, warmup = specs[0].frames, specs[0].warmup
-                scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
-                for spec in specs:
-                    bar.set_description(f"{scene_name} {width}x{height}: {spec.technique}")
-                    row, v = run_one(spec, frame, reference, scene_ms, frags_scene,
-                                     context.renderer)
-                    if v is not None:
-                        array = reference_array_path(scene_name, width, height).with_name(
-                            f"{spec.technique}-{spec.run_id}.npz")
-                        _save_arrays(out_dir / array, visibility=v.astype(np.float32),
-                                     covered=frame.arrays.covered)
-                        row["array"] = str(array)
-                    row["finished_at"] = _now()
-                    results.append_row(out_dir, row)
-                    failed += row["status"] == "error"
-                    bar.set_postfix(failed=failed, refresh=False)
-                    bar.update(1)
-            finally:
-                frame.release()
-    finally:
-        bar.close()
-        write_manifest(out_dir, plan, context, started, _now())
-    return 1 if failed else 0
+    for (scene_name, width, height, samples, ref_seed), specs in groups.items():
+        scene = plan.scenes[scene_name].with_resolution(width, height)
+        bar.set_description_str(f"{scene_name} {width}x{height}: reference")
+        reference = compute_reference(scene, samples=samples, seed=ref_seed)
+        ref_path = out_dir / reference_array_path(scene_name, width, height)
+        if not ref_path.is_file():
+            _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
+                         **({"direct": reference.direct} if reference.direct is not None
+                            else {}))
+        frame = Frame(scene, seed=ref_seed)
+        try:
+            frames, warmup = specs[0].frames, specs[0].warmup
+            scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+            for spec in specs:
+                bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
+                row, v = run_one(spec, frame, reference, scene_ms, frags_scene,
+                                 context.renderer)
+                if v is not None:
+                    array = reference_array_path(scene_name, width, height).with_name(
+                        f"{spec.technique}-{spec.run_id}.npz")
+                    _save_arrays(out_dir / array, visibility=v.astype(np.float32),
+                                 covered=frame.arrays.covered)
+                    row["array"] = str(array)
+                row["finished_at"] = _now()
+                results.append_row(out_dir, row)
+                yield spec, row
+        finally:
+            frame.release()
 
 
 @dataclass

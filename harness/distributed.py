@@ -1,0 +1,125 @@
+"""Distributed sweeps on Dask: workers render and score runs; the client alone writes.
+
+Each worker process owns its GL context, its frames and its reference cache. A run is one
+task; the task returns the run's row and arrays, and the client records them exactly as the
+serial runner does (same ids, same files, atomic results.csv), so a sweep killed at the
+client or at a worker resumes the same way: runs already in results.csv are not sent again.
+
+Timing runs must not share a worker: a LocalCluster gets one thread per worker; an external
+cluster's workers must run one thread each (``dask worker --nthreads 1``) or declare the
+resource ``gl=1`` (``dask worker --resources gl=1``), which the tasks then ask for.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .config import ConfigError
+from .runner import Plan, RunSpec, record_run, sweep_summary
+
+_worker_frames: dict = {}
+
+
+def _frame_on_worker(scene, frames: int, warmup: int):
+    """This worker's frame for the scene (one kept at a time) and its no-shadow cost."""
+    from .technique import Frame
+
+    key = (scene.key, scene.width, scene.height)
+    if key not in _worker_frames:
+        for frame, _, _ in _worker_frames.values():
+            frame.release()
+        _worker_frames.clear()
+        frame = Frame(scene)
+        scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        _worker_frames[key] = (frame, scene_ms, frags_scene)
+    return _worker_frames[key]
+
+
+def run_on_worker(spec: RunSpec, scene, platform: str | None):
+    """One run on this worker: (row, V or None, covered, reference arrays)."""
+    from distributed import get_worker
+
+    from .gl.context import get_context
+    from .reference import compute_reference
+    from .runner import run_one
+
+    context = get_context(platform)
+    reference = compute_reference(scene, samples=spec.samples, seed=spec.ref_seed)
+    frame, scene_ms, frags_scene = _frame_on_worker(scene, spec.frames, spec.warmup)
+    row, v = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
+    row["worker"] = get_worker().address
+    return row, v, frame.arrays.covered, reference
+
+
+def _task_options(client) -> dict:
+    workers = client.scheduler_info()["workers"].values()
+    if not workers:
+        raise ConfigError("the Dask cluster has no workers")
+    if all(w.get("resources", {}).get("gl") for w in workers):
+        return {"resources": {"gl": 1}}
+    crowded = [w["id"] for w in workers if w.get("nthreads", 1) > 1]
+    if crowded:
+        raise ConfigError(
+            f"Dask workers {', '.join(map(str, crowded))} run more than one thread, so timing "
+            "runs would share them; start workers with --nthreads 1 or --resources gl=1")
+    return {}
+
+
+def execute_dask(plan: Plan, out_dir: str | Path, *, scheduler: str | None = None,
+                 n_workers: int = 2, platform_name: str | None = None,
+                 progress: bool = True) -> int:
+    """Run the plan's pending runs on a Dask cluster; returns the exit code (0 ok, 1 failed)."""
+    from distributed import Client, LocalCluster, as_completed
+    from tqdm import tqdm
+
+    from . import results
+    from .gl.context import get_context
+    from .runner import _now, write_manifest
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cluster = None
+    if scheduler is None:
+        env = {k: os.environ[k] for k in ("SHADOWBENCH_GL", "PYOPENGL_PLATFORM",
+                                          "SHADOWBENCH_CACHE") if k in os.environ}
+        if platform_name:
+            env["SHADOWBENCH_GL"] = env["PYOPENGL_PLATFORM"] = platform_name
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, env=env)
+    client = Client(cluster or scheduler)
+    context = get_context(platform_name)
+    started = _now()
+    failed = 0
+    try:
+        options = _task_options(client)
+        write_manifest(out_dir, plan, context, started, None)
+        done = results.done_ids(out_dir)
+        pending = [r for r in plan.runs if r.run_id not in done]
+        futures = [client.submit(run_on_worker, spec,
+                                 plan.scenes[spec.scene].with_resolution(spec.width,
+                                                                         spec.height),
+                                 platform_name, key=f"run-{spec.run_id}", pure=False,
+                                 **options)
+                   for spec in pending]
+        by_key = {f.key: spec for f, spec in zip(futures, pending)}
+        bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
+                   disable=not progress, dynamic_ncols=True)
+        try:
+            for future in as_completed(futures):
+                spec = by_key[future.key]
+                row, v, covered, reference = future.result()
+                failed += record_run(out_dir, spec, row, v, covered, reference)
+                bar.set_description(f"{spec.scene} {spec.technique}")
+                bar.set_postfix(failed=failed, refresh=False)
+                bar.update(1)
+        finally:
+            bar.close()
+    finally:
+        write_manifest(out_dir, plan, context, started, _now())
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return sweep_summary(out_dir, plan, failed)
