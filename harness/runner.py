@@ -315,10 +315,11 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
         reset_gl_state()
 
     v = output.visibility
-    mask = reference.covered & frame.arrays.covered
+    mask = frame.compared_pixels(reference.covered)
     totals = frame.meter.frame_totals_ms
     passes = frame.meter.passes()
-    frags_shadow = sum(p.fragments for p in passes)
+    frags_shadow = (output.shadow_fragments if output.shadow_fragments is not None
+                    else sum(p.fragments for p in passes))
     row.update(
         time_ms=float(np.median(totals)), time_ms_min=min(totals), time_ms_max=max(totals),
         frags_shadow=frags_shadow, overdraw=frags_shadow / max(frags_scene, 1),
@@ -388,8 +389,12 @@ def _time_left(elapsed_s: float, done: float, left: float) -> str:
 
 
 def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
-            progress: bool = True) -> int:
+            progress: bool = True, renderer=None) -> int:
     """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed).
+
+    ``renderer(plan, pending, out_dir, context, bar)`` renders and records the pending runs,
+    yielding ``(spec, row)`` as each is recorded: :func:`render_serial` (the default) in this
+    process, or ``harness.distributed.dask_renderer(...)`` on a Dask cluster.
 
     Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
     at any moment leaves every finished run recorded once and no partial row; the next call
@@ -397,6 +402,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     leaves an unreferenced array that the rerun overwrites."""
     from tqdm import tqdm
 
+    renderer = renderer or render_serial
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with _exclusive(out_dir):
@@ -417,7 +423,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
                    desc="" if pending else "nothing to render")
         cost_left, cost_done, clock = sum(map(_cost, pending)), 0.0, time.monotonic()
         try:
-            for spec, row in _render(plan, pending, out_dir, context, bar):
+            for spec, row in renderer(plan, pending, out_dir, context, bar):
                 session["runs_rendered"] += 1
                 failed += row["status"] == "error"
                 cost_done += _cost(spec)
@@ -442,7 +448,25 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     return 1 if failed else 0
 
 
-def _render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
+def record_run(out_dir: Path, spec: RunSpec, row: dict, v: np.ndarray | None,
+               covered: np.ndarray, reference) -> None:
+    """Store one finished run: the scene's reference arrays (once), V, then the row.
+
+    Arrays are written before their row: a kill between the two leaves an unreferenced array
+    that the rerun overwrites. Every executor records through here, the client alone."""
+    ref_path = out_dir / reference_array_path(spec.scene, spec.width, spec.height)
+    if not ref_path.is_file():
+        _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
+                     **({"direct": reference.direct} if reference.direct is not None else {}))
+    if v is not None:
+        array = ref_path.relative_to(out_dir).with_name(f"{spec.technique}-{spec.run_id}.npz")
+        _save_arrays(out_dir / array, visibility=v.astype(np.float32), covered=covered)
+        row["array"] = str(array)
+    row["finished_at"] = _now()
+    results.append_row(out_dir, row)
+
+
+def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
     """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
     shared), appending each row as it finishes; yields (spec, row) for each."""
     from .reference import compute_reference
@@ -456,11 +480,6 @@ def _render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
         scene = plan.scenes[scene_name].with_resolution(width, height)
         bar.set_description_str(f"{scene_name} {width}x{height}: reference")
         reference = compute_reference(scene, samples=samples, seed=ref_seed)
-        ref_path = out_dir / reference_array_path(scene_name, width, height)
-        if not ref_path.is_file():
-            _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
-                         **({"direct": reference.direct} if reference.direct is not None
-                            else {}))
         frame = Frame(scene, seed=ref_seed)
         try:
             frames, warmup = specs[0].frames, specs[0].warmup
@@ -469,14 +488,7 @@ def _render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
                 bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
                 row, v = run_one(spec, frame, reference, scene_ms, frags_scene,
                                  context.renderer)
-                if v is not None:
-                    array = reference_array_path(scene_name, width, height).with_name(
-                        f"{spec.technique}-{spec.run_id}.npz")
-                    _save_arrays(out_dir / array, visibility=v.astype(np.float32),
-                                 covered=frame.arrays.covered)
-                    row["array"] = str(array)
-                row["finished_at"] = _now()
-                results.append_row(out_dir, row)
+                record_run(out_dir, spec, row, v, frame.arrays.covered, reference)
                 yield spec, row
         finally:
             frame.release()
@@ -488,11 +500,7 @@ class Evaluation:
     visibility: np.ndarray | None
     reference: object  # harness.reference.Reference
     frame_arrays: object  # harness.gbuffer.GBufferArrays
-
-    @property
-    def mask(self) -> np.ndarray:
-        """Pixels covered in both views: the pixels every metric compares."""
-        return self.reference.covered & self.frame_arrays.covered
+    mask: np.ndarray  # the pixels every metric compares (Frame.compared_pixels)
 
 
 def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
@@ -514,7 +522,9 @@ def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
     reference = compute_reference(scene, samples=samples)
     frame = Frame(scene)
     try:
-        row, v = run_one(spec, frame, reference, float("nan"), 0, context.renderer)
-        return Evaluation(row, v, reference, frame.arrays)
+        scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        row, v = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
+        return Evaluation(row, v, reference, frame.arrays,
+                          frame.compared_pixels(reference.covered))
     finally:
         frame.release()

@@ -19,6 +19,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import BaseModel, ConfigDict
 
+from . import metrics
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
@@ -44,6 +45,10 @@ class ShadowOutput:
     mem_bytes: int
     fetches_per_px: float
     nonfinite: int = 0  # NaN/Inf seen in the technique's matrices
+    # fragments of the shadow geometry when the technique counts them itself (e.g. shadow
+    # volumes drawn with the depth test off, DESIGN's overdraw O); else the harness sums the
+    # fragments of the measured passes
+    shadow_fragments: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # additional result columns
     warnings: list[str] = field(default_factory=list)
 
@@ -111,6 +116,13 @@ class Frame:
     def measure(self, name: str):
         """Context manager around one pass: times it and counts its fragments."""
         return self.meter.measure(name)
+
+    def compared_pixels(self, reference_covered: np.ndarray) -> np.ndarray:
+        """The pixels metrics compare: covered in both views and facing the light (see
+        :func:`harness.metrics.facing_light`)."""
+        a = self.arrays
+        return reference_covered & a.covered & metrics.facing_light(
+            a.normal, a.position, self.scene.light, self.camera.position)
 
     def draw_scene(self) -> None:
         self.geometry.draw()

@@ -61,8 +61,8 @@ class ShadowVolumes(Technique):
     the mask (timed as ``scene_redraw``). ``mask_res: half`` computes the mask from a half-
     resolution depth pass and magnifies it bilinearly (section 4.5).
 
-    Volume fragments are counted once, untimed, with the depth test off (``volume_frags``;
-    ``volume_overdraw`` = that / scene fragments, the silhouette-map paper's O).
+    Volume fragments are counted once, untimed, with the depth test off: they are the row's
+    ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
 
     ===============  =====================================================  ==========  =====
     Parameter        Meaning                                                Default     Range
@@ -125,20 +125,9 @@ class ShadowVolumes(Technique):
         GL.glDisable(GL.GL_DEPTH_TEST)
         self.volume_program.use().set(view_proj=self.view_proj)
         volume_frags = count_fragments(self.volumes.draw)
-        # scene fill as the G-buffer pass counts it: full resolution, depth test on
-        full = Framebuffer(frame.width, frame.height, (GL.GL_RGBA8,), depth=True)
-        full.clear((0, 0, 0, 0))
-        GL.glColorMask(False, False, False, False)
-        GL.glEnable(GL.GL_DEPTH_TEST)
-        GL.glDepthFunc(GL.GL_LESS)
-        GL.glDepthMask(True)
-        self.depth_program.use().set(view_proj=self.view_proj)
-        scene_frags = count_fragments(frame.draw_scene)
-        full.release()
         GL.glColorMask(True, True, True, True)
         triangles = len(self.volume_set.triangles)
-        return {"volume_frags": volume_frags, "volume_scene_frags": scene_frags,
-                "volume_overdraw": volume_frags / max(scene_frags, 1),
+        return {"volume_frags": volume_frags,
                 "volume_triangles": triangles, "volume_vertices": 3 * triangles,
                 "volume_count": self.volume_set.volume_count,
                 "silhouette_edges": self.volume_set.silhouette_edges,
@@ -266,9 +255,11 @@ class ShadowVolumes(Technique):
                 self._scene_redraw_pass(frame)
         with frame.measure("visibility"):
             self._visibility_pass(frame)
+        fill = dict(self.fill)
         return frame.output(mem_bytes=self.mask.nbytes,
                             fetches_per_px=4 if p.mask_res == "half" else 1,
-                            extra=dict(self.fill), warnings=self.warnings)
+                            shadow_fragments=fill.pop("volume_frags"), extra=fill,
+                            warnings=self.warnings)
 
     def release(self) -> None:
         for resource in (self.volumes, self.mask, self.depth_program, self.volume_program,
