@@ -53,9 +53,17 @@ def cmd_run(args) -> int:
         scenes=_csv_list(args.scenes) if args.scenes else None,
         techniques=_csv_list(args.techniques) if args.techniques else None,
         overrides=runner.parse_overrides(args.set or []))
+    renderer = None
+    if args.executor == "dask":
+        from .distributed import dask_renderer
+
+        renderer = dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
+                                 platform_name=args.platform)
+    elif args.scheduler:
+        raise ConfigError("--scheduler goes with --executor dask")
     started = time.perf_counter()
     code = runner.execute(plan, args.out, platform_name=args.platform,
-                          progress=not args.quiet)
+                          progress=not args.quiet, renderer=renderer)
     rows = [r for r in runner.results.read_rows(args.out)]
     ids = {r.run_id for r in plan.runs}
     mine = [r for r in rows if r["run_id"] in ids]
@@ -128,6 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", required=True, help="run directory")
     q.add_argument("--platform", choices=["osmesa", "egl"], default=None,
                    help="GL platform (default osmesa, or $SHADOWBENCH_GL)")
+    q.add_argument("--executor", choices=["serial", "dask"], default="serial",
+                   help="serial (this process) or dask (a Dask cluster; the client writes)")
+    q.add_argument("--scheduler", metavar="ADDRESS",
+                   help="with --executor dask: an existing scheduler (default: a LocalCluster)")
+    q.add_argument("--workers", type=int, default=2,
+                   help="with --executor dask and no --scheduler: LocalCluster workers "
+                        "(one thread each; default 2)")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_run)
 

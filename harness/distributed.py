@@ -15,10 +15,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import numpy as np
-
 from .config import ConfigError
-from .runner import Plan, RunSpec, record_run, sweep_summary
+from .runner import Plan, RunSpec, record_run
 
 _worker_frames: dict = {}
 
@@ -68,58 +66,41 @@ def _task_options(client) -> dict:
     return {}
 
 
-def execute_dask(plan: Plan, out_dir: str | Path, *, scheduler: str | None = None,
-                 n_workers: int = 2, platform_name: str | None = None,
-                 progress: bool = True) -> int:
-    """Run the plan's pending runs on a Dask cluster; returns the exit code (0 ok, 1 failed)."""
-    from distributed import Client, LocalCluster, as_completed
-    from tqdm import tqdm
+def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
+                  platform_name: str | None = None):
+    """A renderer for :func:`harness.runner.execute` that sends each run to a Dask cluster:
+    the one at ``scheduler``, or a new LocalCluster of ``n_workers`` one-thread workers."""
 
-    from . import results
-    from .gl.context import get_context
-    from .runner import _now, write_manifest
+    def render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
+        from distributed import Client, LocalCluster, as_completed
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    cluster = None
-    if scheduler is None:
-        env = {k: os.environ[k] for k in ("SHADOWBENCH_GL", "PYOPENGL_PLATFORM",
-                                          "SHADOWBENCH_CACHE") if k in os.environ}
-        if platform_name:
-            env["SHADOWBENCH_GL"] = env["PYOPENGL_PLATFORM"] = platform_name
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, env=env)
-    client = Client(cluster or scheduler)
-    context = get_context(platform_name)
-    started = _now()
-    failed = 0
-    try:
-        options = _task_options(client)
-        write_manifest(out_dir, plan, context, started, None)
-        done = results.done_ids(out_dir)
-        pending = [r for r in plan.runs if r.run_id not in done]
-        futures = [client.submit(run_on_worker, spec,
-                                 plan.scenes[spec.scene].with_resolution(spec.width,
-                                                                         spec.height),
-                                 platform_name, key=f"run-{spec.run_id}", pure=False,
-                                 **options)
-                   for spec in pending]
-        by_key = {f.key: spec for f, spec in zip(futures, pending)}
-        bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
-                   disable=not progress, dynamic_ncols=True)
+        cluster = None
+        if scheduler is None:
+            env = {k: os.environ[k] for k in ("SHADOWBENCH_GL", "PYOPENGL_PLATFORM",
+                                              "SHADOWBENCH_CACHE") if k in os.environ}
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, env=env)
+        client = Client(cluster or scheduler)
         try:
+            options = _task_options(client)
+            futures = [client.submit(run_on_worker, spec,
+                                     plan.scenes[spec.scene].with_resolution(spec.width,
+                                                                             spec.height),
+                                     platform_name, key=f"run-{spec.run_id}", pure=False,
+                                     **options)
+                       for spec in pending]
+            spec_of = {f.key: spec for f, spec in zip(futures, pending)}
+            bar.set_description_str(f"{len(client.scheduler_info()['workers'])} Dask workers")
             for future in as_completed(futures):
-                spec = by_key[future.key]
+                spec = spec_of[future.key]
                 row, v, covered, reference = future.result()
-                failed += record_run(out_dir, spec, row, v, covered, reference)
-                bar.set_description(f"{spec.scene} {spec.technique}")
-                bar.set_postfix(failed=failed, refresh=False)
-                bar.update(1)
+                record_run(out_dir, spec, row, v, covered, reference)
+                bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
+                                        f"{spec.technique} ({row['worker']})")
+                yield spec, row
         finally:
-            bar.close()
-    finally:
-        write_manifest(out_dir, plan, context, started, _now())
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    return sweep_summary(out_dir, plan, failed)
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+    return render

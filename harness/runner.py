@@ -27,6 +27,7 @@ from pydantic import ValidationError
 
 from . import config as cfg
 from . import metrics, registry, results
+from .gl.measure import default_timer
 from .scene import BuiltScene, build_scene
 
 
@@ -196,6 +197,19 @@ def _cpu() -> str:
     return platform.processor() or platform.machine()
 
 
+def _nvidia_gpus() -> list[dict]:
+    """Name and driver of each NVIDIA GPU (empty without nvidia-smi)."""
+    try:
+        out = subprocess.run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total",
+                              "--format=csv,noheader"], capture_output=True, text=True,
+                             timeout=20).stdout
+    except (OSError, subprocess.SubprocessError):
+        return []
+    keys = ("name", "driver", "memory")
+    return [dict(zip(keys, (f.strip() for f in line.split(",")))) for line in out.splitlines()
+            if line.strip()]
+
+
 def _version(module: str) -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -243,7 +257,9 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
             ("trimesh", "trimesh"))},
         "python": sys.version.split()[0],
         "gl": {"platform": context.platform, "vendor": context.vendor,
-               "renderer": context.renderer, "version": context.version},
+               "renderer": context.renderer, "version": context.version,
+               "timer": default_timer(context.renderer)},
+        "gpu": _nvidia_gpus(),
         "cpu": _cpu(),
         "git_commit": _git_commit(),
         "git_dirty": _git_dirty(),
