@@ -131,13 +131,14 @@ def nonfinite(*arrays) -> int:
                    for a in arrays))
 
 
-def facing_light(normal, position, light, camera_position) -> np.ndarray:
-    """Pixels whose visible side faces the light: n . l > 0, with n turned toward the camera.
+def receives_light(normal, position, light, camera_position) -> np.ndarray:
+    """Pixels the light can reach: the visible side faces the light (n . l > 0, with n turned
+    toward the camera) and, for a spot light, the point lies inside its cone.
 
-    A surface facing away from the light receives no direct light whatever V says there, and
-    techniques legitimately differ on it (shadow volumes shadow it, a biased shadow map may
-    call it lit), so visibility is compared only where the surface faces the light.
-    ``light`` is a :class:`harness.scene.Light`.
+    Elsewhere a surface receives no direct light whatever V says, and techniques
+    legitimately differ there (shadow volumes shadow a back face, a biased map may call it
+    lit; a spot's map calls everything outside its cone lit), so visibility is compared only
+    where the light arrives. ``light`` is a :class:`harness.scene.Light`.
     """
     normal = np.asarray(normal, dtype=np.float64)
     position = np.asarray(position, dtype=np.float64)
@@ -145,7 +146,10 @@ def facing_light(normal, position, light, camera_position) -> np.ndarray:
         raise ValueError(f"expected normal and position of one (..., 3) shape, got "
                          f"{normal.shape} and {position.shape}")
     toward_camera = np.sign((normal * (np.asarray(camera_position) - position)).sum(-1))
-    return (normal * light.to_light(position)).sum(-1) * toward_camera > 0
+    reached = (normal * light.to_light(position)).sum(-1) * toward_camera > 0
+    if light.type == "spot":
+        reached &= light.inside_cone(position)
+    return reached
 
 
 def shade(visibility, normal, position, albedo, light, *, ambient: float) -> np.ndarray:
@@ -159,7 +163,6 @@ def shade(visibility, normal, position, albedo, light, *, ambient: float) -> np.
     if light.type == "spot":
         d = position - light.position
         r2 = np.maximum((d * d).sum(-1), 1e-12)
-        inside = (d @ light.direction) / np.sqrt(r2) >= np.cos(np.radians(light.fov_deg / 2))
-        cos = np.where(inside, cos * light.power_scale / r2, 0.0)
+        cos = np.where(light.inside_cone(position), cos * light.power_scale / r2, 0.0)
     value = albedo * (ambient + np.asarray(visibility) * cos)
     return np.repeat(value[..., None], 3, axis=2).astype(np.float32)

@@ -48,6 +48,12 @@ class Light:
         receives about the irradiance a directional light of the same power gives."""
         return self.aim_distance ** 2 if self.type == "spot" else 1.0
 
+    def inside_cone(self, points: np.ndarray) -> np.ndarray:
+        """Spot light: whether each point lies inside the cone (its full angle ``fov_deg``)."""
+        d = np.asarray(points, dtype=np.float64) - self.position
+        distance = np.maximum(np.linalg.norm(d, axis=-1), 1e-30)
+        return (d @ self.direction) / distance >= np.cos(np.radians(self.fov_deg / 2))
+
     def to_light(self, points: np.ndarray) -> np.ndarray:
         """Unit vectors from surface points toward the light, shape like ``points``."""
         if self.type == "directional":

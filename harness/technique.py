@@ -118,10 +118,10 @@ class Frame:
         return self.meter.measure(name)
 
     def compared_pixels(self, reference_covered: np.ndarray) -> np.ndarray:
-        """The pixels metrics compare: covered in both views and facing the light (see
-        :func:`harness.metrics.facing_light`)."""
+        """The pixels metrics compare: covered in both views and reached by the light (see
+        :func:`harness.metrics.receives_light`)."""
         a = self.arrays
-        return reference_covered & a.covered & metrics.facing_light(
+        return reference_covered & a.covered & metrics.receives_light(
             a.normal, a.position, self.scene.light, self.camera.position)
 
     def draw_scene(self) -> None:

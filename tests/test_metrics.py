@@ -97,14 +97,24 @@ def test_shade_directional_lambert():
     assert img[0, 1] == pytest.approx([0.1 + 0.5 * 0.8] * 3)
 
 
-def test_facing_light_turns_normals_toward_the_camera():
+def test_receives_light_turns_normals_toward_the_camera():
     from harness.scene import Light
 
     light = Light("directional", np.array([0.0, 0.0, -1.0]))  # light travels down
     position = np.zeros((1, 3, 3))
     normal = np.array([[[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]]])
-    above = metrics.facing_light(normal, position, light, camera_position=[0, 0, 5])
-    below = metrics.facing_light(normal, position, light, camera_position=[0, 0, -5])
+    above = metrics.receives_light(normal, position, light, camera_position=[0, 0, 5])
+    below = metrics.receives_light(normal, position, light, camera_position=[0, 0, -5])
     # seen from above, the plane faces the light whichever way its stored normal points
     assert above.tolist() == [[True, True, False]]
     assert below.tolist() == [[False, False, False]]
+
+
+def test_receives_light_only_inside_a_spot_cone():
+    from harness.scene import Light
+
+    light = Light("spot", np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 10.0]), 60.0, 10.0)
+    position = np.array([[[0.0, 0, 0], [5.0, 0, 0], [6.0, 0, 0]]])  # tan(30) * 10 = 5.77
+    normal = np.broadcast_to([0.0, 0, 1], position.shape)
+    got = metrics.receives_light(normal, position, light, camera_position=[0, -5, 5])
+    assert got.tolist() == [[True, True, False]]
