@@ -29,8 +29,9 @@ $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 	$(PY) -m pip install -q -e '.[dev]'
 	@touch $@
 
+# benchmarks run once each as plain tests here (their timings are make microbench's job)
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q --benchmark-disable
 
 # Some failed runs (exit 1) still get their dashboard, which shows why; bad input (2) does not.
 bench: setup
@@ -51,6 +52,21 @@ microbench: setup
 
 microbench-compare: setup
 	$(PY) -m pytest $(BENCH_FLAGS) --benchmark-compare
+
+# Every paper experiment (experiments/papers/*.yaml) into $(PAPERS_OUT)/<experiment>, then the
+# claims (papers.json), each experiment's dashboard and the Papers page. About a minute on
+# 2 cores with a warm reference cache (first run: add the references' ray tracing).
+PAPERS_OUT ?= results/papers
+PAPER_EXPERIMENTS := $(filter-out experiments/papers/scenes.yaml,$(wildcard experiments/papers/*.yaml))
+
+reproduce: setup
+	@start=$$(date +%s); \
+	for experiment in $(PAPER_EXPERIMENTS); do \
+	  $(VENV)/bin/shadowbench run $$experiment --out $(PAPERS_OUT)/$$(basename $$experiment .yaml) --quiet; \
+	  status=$$?; [ $$status -le 1 ] || exit $$status; \
+	done; \
+	$(PY) -m papers $(PAPERS_OUT) || exit $$?; \
+	echo "make reproduce: $$(( $$(date +%s) - start )) s wall time"
 
 lint: setup
 	$(VENV)/bin/ruff check harness techniques tests

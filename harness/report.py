@@ -524,6 +524,9 @@ def build_report(out_dir: str | Path) -> Path:
 {_results_table(group)}</details>
 </section>""")
     nav = " ".join(f'<a href="#{_slug(s)}">{html.escape(s)}</a>' for s in scenes)
+    papers = _papers_link(out_dir)
+    if papers:
+        nav += f' <a href="{papers}">Papers</a>'
     built = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>shadowbench: {html.escape(str(out_dir))}</title>
@@ -553,3 +556,135 @@ the first error.</p>
     tmp.write_text(page)
     tmp.replace(index)
     return index
+
+
+# --- the Papers page ---------------------------------------------------------------------------
+# ROOT/papers.json (written by whatever evaluates paper claims; this module knows no paper):
+# {"schema": 1, "renderer": str, "claims": [{paper, where, claim, reported, measured, tolerance,
+#  agrees, why_not, experiment, images: [{label, array, reference}], table: {columns, rows},
+#  plot: {x_title, y_title, log_x, log_y, series: [{name, x, y, dash}]}}]}; paths relative to ROOT.
+
+PAPERS_JSON = "papers.json"
+PAPERS_HTML = "papers.html"
+CLAIM_KEYS = ("paper", "where", "claim", "reported", "measured", "tolerance", "agrees", "why_not")
+
+
+def _papers_link(out_dir: Path) -> str | None:
+    """Relative link to the Papers page of a run directory (or of the directory holding it)."""
+    if (out_dir / PAPERS_JSON).is_file():
+        return PAPERS_HTML
+    if (out_dir.parent / PAPERS_JSON).is_file():
+        return f"../{PAPERS_HTML}"
+    return None
+
+
+def _claim_images(root: Path, index: int, images: list[dict]) -> str:
+    """The claim's runs side by side: V of each, and beneath it the same enlarged edge crop
+    (chosen on the first run's reference), the reference first."""
+    if not images:
+        return ""
+    with np.load(root / images[0]["reference"]) as z:
+        ref, ref_cov = z["visibility"], z["covered"]
+    crop = edge_crop(ref, ref_cov)
+    folder = Path("images") / "papers" / f"claim-{index}"
+    cells = [("reference", _visibility_rgb(ref, ref_cov))]
+    for image in images:
+        with np.load(root / image["array"]) as z:
+            cells.append((image["label"], _visibility_rgb(z["visibility"], z["covered"])))
+    heads, fulls, crops = [], [], []
+    for j, (label, rgb) in enumerate(cells):
+        name = folder / f"{j}.png"
+        _with_box(rgb, crop, root / name)
+        heads.append(f"<th>{html.escape(label)}</th>")
+        fulls.append(f'<td><img src="{name}" alt="{html.escape(label)}" width="{THUMB_PX}"></td>')
+        if crop is not None:
+            _crop_png(rgb, crop, root / folder / f"{j}-crop.png")
+            crops.append(f'<td><img src="{folder}/{j}-crop.png" alt="{html.escape(label)} crop" '
+                         f'width="{THUMB_PX}"></td>')
+    crop_row = f"<tr>{''.join(crops)}</tr>" if crops else ""
+    return (f'<table class="grid"><tr>{"".join(heads)}</tr><tr>{"".join(fulls)}</tr>'
+            f"{crop_row}</table>")
+
+
+def _claim_table(table: dict | None) -> str:
+    if not table:
+        return ""
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in table["columns"])
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>"
+                   for row in table["rows"])
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _claim_plot(plot: dict | None, div_id: str) -> str:
+    if not plot:
+        return ""
+    import plotly.graph_objects as go
+
+    fig = go.Figure()
+    for s in plot["series"]:
+        fig.add_trace(go.Scatter(x=s["x"], y=s["y"], name=s["name"], mode="lines+markers"
+                                 if len(s["x"]) <= 12 else "lines",
+                                 line=dict(dash=s.get("dash", "solid"))))
+    fig.update_layout(height=380, template="plotly_white", margin=dict(l=60, r=20, t=20, b=50),
+                      xaxis=dict(title=plot["x_title"], type="log" if plot.get("log_x") else None),
+                      yaxis=dict(title=plot["y_title"], type="log" if plot.get("log_y") else None))
+    return _figure_html(fig, div_id)
+
+
+def build_papers_page(root: str | Path) -> Path:
+    """Write ``root/papers.html`` from ``root/papers.json``: a table of every claim (reported,
+    measured, tolerance, agrees, why not), then each claim with its table, plot and images."""
+    from plotly.offline import get_plotlyjs
+
+    root = Path(root)
+    doc = json.loads((root / PAPERS_JSON).read_text())
+    claims = doc["claims"]
+    rows, details = [], []
+    for i, c in enumerate(claims):
+        verdict = "yes" if c["agrees"] else "no"
+        rows.append(f'<tr class="{"pass" if c["agrees"] else "fail"}">'
+                    + "".join(f"<td>{html.escape(str(c[k]))}</td>" for k in CLAIM_KEYS[:6])
+                    + f'<td><a href="#claim-{i}">{verdict}</a></td>'
+                    + f"<td>{html.escape(c.get('why_not') or '')}</td></tr>")
+        experiment = c.get("experiment")
+        runs = (f' · runs: <a href="{html.escape(experiment)}/index.html">'
+                f"{html.escape(experiment)}</a>" if experiment else " · analytic")
+        details.append(f"""
+<section id="claim-{i}">
+<h3>{html.escape(c['paper'])}, {html.escape(c['where'])}: {html.escape(c['claim'])}
+ <small>{'agrees' if c['agrees'] else 'does not agree'}{runs}</small></h3>
+<p><b>Reported:</b> {html.escape(c['reported'])}<br><b>Measured:</b> {html.escape(c['measured'])}
+<br><b>Tolerance:</b> {html.escape(c['tolerance'])}
+{f"<br><b>Why not:</b> {html.escape(c['why_not'])}" if not c['agrees'] else ""}</p>
+{_claim_table(c.get('table'))}
+{_claim_plot(c.get('plot'), f'claim-{i}-plot')}
+{_claim_images(root, i, c.get('images') or [])}
+</section>""")
+    experiments = sorted({c["experiment"] for c in claims if c.get("experiment")})
+    links = " ".join(f'<a href="{html.escape(e)}/index.html">{html.escape(e)}</a>'
+                     for e in experiments)
+    agree = sum(bool(c["agrees"]) for c in claims)
+    built = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    head = "".join(f"<th>{k}</th>" for k in CLAIM_KEYS)
+    page = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>shadowbench: papers</title>
+<link rel="icon" href="data:,">
+<style>{STYLE}</style>
+<script type="text/javascript">{get_plotlyjs()}</script>
+</head><body>
+<h1>Paper reproductions</h1>
+<p class="meta">{agree} of {len(claims)} claims agree · renderer
+{html.escape(doc.get('renderer') or '?')} · built {built}</p>
+<nav>experiment dashboards: {links}</nav>
+<p>Each claim: what the paper reports, what we measure, the tolerance it is judged by, and why
+not where it does not agree (another machine explains absolute times, not a reversed
+ordering). Images: the reference, then each run's V; beneath, the same enlarged edge crop.</p>
+<table class="claims"><tr>{head}</tr>{''.join(rows)}</table>
+{''.join(details)}
+</body></html>
+"""
+    path = root / PAPERS_HTML
+    tmp = root / f".{PAPERS_HTML}.tmp"
+    tmp.write_text(page)
+    tmp.replace(path)
+    return path

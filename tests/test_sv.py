@@ -165,7 +165,7 @@ def test_light_inside_closed_mesh_warns(evaluate, gl_context):
         return (v - [0, 0, 1.5]) * 6 + [0, 0, 1.5], f
 
     scene = _scene_with_box(grow, "{type: spot, position: [0, 0, 1.5], target: [0, 0, 0], "
-                                  "fov: 90}")
+                                  "fov: 170}")
     e = evaluate(scene, "sv", {})
     assert e.row["status"] == "ok", e.row["error"]
     assert "light is inside this closed mesh" in e.row["warnings"]

@@ -1,0 +1,9 @@
+"""Paper reproductions: each founding paper's headline results next to what shadowbench measures.
+
+``experiments/papers/*.yaml`` are run into ``ROOT/<experiment>/``; :func:`papers.claims.evaluate`
+turns those results (and, for GMNPR Figures 5 and 6, the analytic formulas of
+``techniques.warping``) into claims written to ``ROOT/papers.json``, which
+``harness.report.build_papers_page`` renders as ``ROOT/papers.html``.
+
+    python -m papers ROOT      # claims, each experiment's dashboard, the Papers page
+"""
