@@ -7,14 +7,13 @@ stderr naming file and key; nothing written).
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
 import warnings
 from pathlib import Path
 
-from .config import ConfigError
+from .config import ConfigError, square_number
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
 
@@ -88,9 +87,10 @@ def cmd_reference(args) -> int:
     from .runner import _save_arrays, reference_array_path
     from .scene import load_scene
 
-    if args.samples < 1 or math.isqrt(args.samples) ** 2 != args.samples:
-        raise ConfigError(f"--samples: must be a square number (1, 4, 16, 64, ...), "
-                          f"got {args.samples}")
+    try:
+        square_number(args.samples)
+    except ValueError as e:
+        raise ConfigError(f"--samples: {e}") from None
     scene = load_scene(args.scene, args.scene_file)
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)

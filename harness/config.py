@@ -14,9 +14,20 @@ from typing import Annotated, Literal, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
+                      field_validator, model_validator)
 
 Vec3 = tuple[float, float, float]
+
+
+def square_number(value: int) -> int:
+    """Validate a square sample count (a sqrt(n) x sqrt(n) grid)."""
+    if value < 1 or math.isqrt(value) ** 2 != value:
+        raise ValueError(f"must be a square number (1, 4, 9, 16, 25, ...), got {value}")
+    return value
+
+
+SquareInt = Annotated[int, AfterValidator(square_number)]
 
 
 class ConfigError(Exception):
@@ -380,15 +391,8 @@ class Grid(Strict):
 
 
 class ReferenceSettings(Strict):
-    samples: int = Field(16, ge=1, le=1024)
+    samples: SquareInt = Field(16, le=1024)
     seed: int = Field(0, ge=0)
-
-    @field_validator("samples")
-    @classmethod
-    def _square(cls, v):
-        if math.isqrt(v) ** 2 != v:
-            raise ValueError(f"must be a square number (1, 4, 16, 64, ...), got {v}")
-        return v
 
 
 class Experiment(Strict):

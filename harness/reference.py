@@ -3,8 +3,9 @@
 Per pixel, ``samples`` jittered stratified primary rays from the matched camera; from each hit
 one shadow ray toward the spot light's position or against the directional light's direction.
 V_ref is the lit fraction of the samples that hit geometry. A pixel is covered when the ray
-through its centre hits geometry, exactly the GL rasteriser's coverage rule. When the scene's effects include ``direct``, Mitsuba's ``direct``
-integrator (delta light, diffuse BSDFs, no indirect light) renders the shaded image too.
+through its centre hits geometry, exactly the GL rasteriser's coverage rule. When the scene's
+effects include ``direct``, Mitsuba's ``direct`` integrator (delta light, diffuse BSDFs, no
+indirect light) renders the shaded image too.
 Results are cached on disk under a hash of the scene, resolution, samples and Mitsuba version.
 """
 
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .config import square_number
 from .scene import BuiltScene
 
 CACHE_VERSION = 4  # bump when the reference's definition changes
@@ -223,9 +225,7 @@ def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
 def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
                       variant: str | None = None, use_cache: bool = True,
                       rays_per_batch: int = 1 << 22) -> Reference:
-    if samples < 1 or math.isqrt(samples) ** 2 != samples:
-        raise ValueError(f"reference samples must be a square number (1, 4, 16, 64...), "
-                         f"got {samples}")
+    square_number(samples)
     path = cache_dir() / f"{cache_key(scene, samples, seed)}.npz"
     if use_cache and path.is_file():
         with np.load(path) as z:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
+from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from .shadowmap import FilteredShadowMap
@@ -44,21 +45,13 @@ class PercentageCloserFiltering(Technique):
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
-        k: int = Field(16, ge=1, le=64)
+        k: SquareInt = Field(16, le=64)
         sampling: Literal["grid", "jitter"] = "grid"
         res_factor: float = Field(1.0, gt=0, le=64)
         bias_min: float = Field(0.02, ge=0)
         bias_max: float = Field(0.04, ge=0)
         slope_bias: float = Field(0.0, ge=0)
         seed: int = Field(0, ge=0, lt=2**32)
-
-        @field_validator("k")
-        @classmethod
-        def _square(cls, k):
-            if math.isqrt(k) ** 2 != k:
-                squares = [i * i for i in range(1, 9)]
-                raise ValueError(f"k must be a square number, one of {squares}; got {k}")
-            return k
 
         @model_validator(mode="after")
         def _bias_range(self):

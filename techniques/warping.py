@@ -21,8 +21,9 @@ from itertools import combinations
 
 import numpy as np
 from OpenGL import GL
-from pydantic import Field, field_validator
+from pydantic import Field
 
+from harness.config import SquareInt
 from harness.technique import Frame, NotApplicable, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, look_at
 
@@ -432,14 +433,7 @@ class WarpParams(TechniqueParams):
     res: int = Field(1024, ge=16, le=8192)
     bias: float = Field(0.02, ge=0)
     slope_bias: float = Field(1.0, ge=0)
-    k: int = Field(1, ge=1, le=49)
-
-    @field_validator("k")
-    @classmethod
-    def _square(cls, v):
-        if math.isqrt(v) ** 2 != v:
-            raise ValueError(f"must be a perfect square (1, 4, 9, ...), got {v}")
-        return v
+    k: SquareInt = Field(1, le=49)
 
 
 class WarpedShadowMap(Technique):

@@ -50,3 +50,21 @@ def evaluate(gl_context):
     from harness.runner import evaluate as run
 
     return run
+
+
+@pytest.fixture
+def small_scene_file(tmp_path, shipped_scenes):
+    """``small_scene_file(*names, size=(64, 48))``: a scene file of shipped scenes made small."""
+    import yaml
+
+    def write(*names, size=(64, 48)):
+        scenes = {}
+        for name in names or ("box_plane", "sphere_plane"):
+            scene = shipped_scenes[name].model_dump(mode="json")
+            scene["resolution"] = list(size)
+            scenes[name] = scene
+        path = tmp_path / "small_scenes.yaml"
+        path.write_text(yaml.safe_dump({"scenes": scenes}))
+        return path
+
+    return write

@@ -8,8 +8,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
-import yaml
 
 from harness import cli, registry
 from harness.technique import Technique, TechniqueParams
@@ -20,27 +18,16 @@ REQUIRED = ("scene technique params width height res time_ms time_ms_min time_ms
 METRICS = "mae rmse wrong_pct edge_mae ssim psnr levels time_ms".split()
 
 
-@pytest.fixture
-def small_scene_file(tmp_path, shipped_scenes):
-    scenes = {}
-    for name in ("box_plane", "sphere_plane"):
-        s = shipped_scenes[name].model_dump(mode="json")
-        s["resolution"] = [64, 48]
-        scenes[name] = s
-    path = tmp_path / "scenes.yaml"
-    path.write_text(yaml.safe_dump({"scenes": scenes}))
-    return path
-
-
 def _rows(out):
     with (out / "results.csv").open() as f:
         return list(csv.DictReader(f))
 
 
 def test_run_end_to_end(small_scene_file, tmp_path, gl_context):
+    scene_file = small_scene_file()
     out = tmp_path / "run"
     exe = Path(sys.executable).with_name("shadowbench")
-    proc = subprocess.run([str(exe), "run", "--scene-file", str(small_scene_file),
+    proc = subprocess.run([str(exe), "run", "--scene-file", str(scene_file),
                            "--techniques", "sm,pcf", "--set", "pcf.k=4", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
@@ -69,7 +56,7 @@ def test_run_end_to_end(small_scene_file, tmp_path, gl_context):
     index = out / "index.html"
     assert index.is_file() and "sphere_plane" in index.read_text()
 
-    again = subprocess.run([str(exe), "run", "--scene-file", str(small_scene_file),
+    again = subprocess.run([str(exe), "run", "--scene-file", str(scene_file),
                             "--techniques", "sm,pcf", "--set", "pcf.k=4", "--out", str(out),
                             "--quiet"], capture_output=True, text=True, timeout=600)
     assert again.returncode == 0
@@ -98,11 +85,12 @@ class Broken(Technique):
 
 def test_a_failing_technique_writes_an_error_row_and_exit_1(small_scene_file, tmp_path,
                                                             monkeypatch, gl_context, capsys):
+    scene_file = small_scene_file()
     found = dict(registry.techniques())
     found["broken"] = Broken
     monkeypatch.setattr(registry, "techniques", lambda: found)
     out = tmp_path / "run"
-    code = cli.main(["run", "--scene-file", str(small_scene_file), "--scenes", "box_plane",
+    code = cli.main(["run", "--scene-file", str(scene_file), "--scenes", "box_plane",
                      "--techniques", "broken,sm", "--out", str(out), "--quiet"])
     assert code == 1
     rows = {r["technique"]: r for r in _rows(out)}
@@ -120,7 +108,8 @@ def test_list_names_techniques_and_scenes(capsys):
 
 
 def test_reference_command(small_scene_file, tmp_path, capsys):
-    code = cli.main(["reference", "--scene", "box_plane", "--scene-file", str(small_scene_file),
+    scene_file = small_scene_file()
+    code = cli.main(["reference", "--scene", "box_plane", "--scene-file", str(scene_file),
                      "--out", str(tmp_path / "ref"), "--samples", "4"])
     assert code == 0
     assert (tmp_path / "ref/arrays/box_plane/64x48/reference.npz").is_file()

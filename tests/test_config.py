@@ -100,7 +100,7 @@ def test_good_scene_loads_with_defaults(tmp_path):
 
 @pytest.mark.parametrize("args, needle", [
     (["--set", "pcf.kk=4"], "pcf has no parameter 'kk'; allowed: res, k"),
-    (["--set", "pcf.k=5"], "k must be a square number"),
+    (["--set", "pcf.k=5"], "pcf.k: must be a square number"),
     (["--set", "sm.res=8"], "sm.res"),
     (["--set", "pcf.k"], "expected technique.param=value"),
     (["--techniques", "nope"], "unknown technique 'nope'"),

@@ -19,14 +19,8 @@ SAME = ("run_id", "scene", "technique", "params", "width", "height", "mae", "rms
 
 
 @pytest.fixture
-def sweep(tmp_path, shipped_scenes):
-    scenes = {}
-    for name in ("box_plane", "sphere_plane", "pins"):
-        s = shipped_scenes[name].model_dump(mode="json")
-        s["resolution"] = [64, 48]
-        scenes[name] = s
-    scene_file = tmp_path / "scenes.yaml"
-    scene_file.write_text(yaml.safe_dump({"scenes": scenes}))
+def sweep(tmp_path, small_scene_file):
+    scene_file = small_scene_file("box_plane", "sphere_plane", "pins")
     experiment = tmp_path / "sweep.yaml"
     experiment.write_text(yaml.safe_dump({
         "scene_file": str(scene_file), "scenes": "all", "frames": 1, "warmup": 0,

@@ -8,23 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from harness.gl.measure import default_timer
 
 EXE = str(Path(sys.executable).with_name("shadowbench"))
-
-
-@pytest.fixture
-def small_scene_file(tmp_path, shipped_scenes):
-    scenes = {}
-    for name in ("box_plane", "sphere_plane"):
-        s = shipped_scenes[name].model_dump(mode="json")
-        s["resolution"] = [64, 48]
-        scenes[name] = s
-    path = tmp_path / "scenes.yaml"
-    path.write_text(yaml.safe_dump({"scenes": scenes}))
-    return path
 
 
 def _arrays(out):
@@ -34,10 +21,11 @@ def _arrays(out):
 
 
 def test_egl_platform_renders_the_same_visibility(small_scene_file, tmp_path):
+    scene_file = small_scene_file()
     runs = {}
     for platform in ("osmesa", "egl"):
         out = tmp_path / platform
-        proc = subprocess.run([EXE, "run", "--scene-file", str(small_scene_file), "--quiet",
+        proc = subprocess.run([EXE, "run", "--scene-file", str(scene_file), "--quiet",
                                "--techniques", "sm,pcf,sv", "--platform", platform,
                                "--out", str(out)], capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr
@@ -56,7 +44,7 @@ def test_timer_choice():
     assert default_timer("NVIDIA H100 80GB HBM3/PCIe/SSE2") == "query"
 
 
-def test_timer_queries_measure_passes_on_egl(small_scene_file):
+def test_timer_queries_measure_passes_on_egl():
     """GL_TIME_ELAPSED through ctypes, on Mesa's EGL (where the query interface loads)."""
     code = (
         "from harness.gl.context import get_context; get_context('egl')\n"
