@@ -37,7 +37,7 @@ def _frame_on_worker(scene, frames: int, warmup: int):
 
 
 def run_on_worker(spec: RunSpec, scene, platform: str | None):
-    """One run on this worker: (row, V or None, covered, reference arrays)."""
+    """One run on this worker: (row, its arrays or None, the reference)."""
     from distributed import get_worker
 
     from .gl.context import get_context
@@ -47,9 +47,9 @@ def run_on_worker(spec: RunSpec, scene, platform: str | None):
     context = get_context(platform)
     reference = compute_reference(scene, samples=spec.samples, seed=spec.ref_seed)
     frame, scene_ms, frags_scene = _frame_on_worker(scene, spec.frames, spec.warmup)
-    row, v = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
+    row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
     row["worker"] = get_worker().address
-    return row, v, frame.arrays.covered, reference
+    return row, arrays, reference
 
 
 def _task_options(client) -> dict:
@@ -93,8 +93,8 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
             bar.set_description_str(f"{len(client.scheduler_info()['workers'])} Dask workers")
             for future in as_completed(futures):
                 spec = spec_of[future.key]
-                row, v, covered, reference = future.result()
-                record_run(out_dir, spec, row, v, covered, reference)
+                row, arrays, reference = future.result()
+                record_run(out_dir, spec, row, arrays, reference)
                 bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
                                         f"{spec.technique} ({row['worker']})")
                 yield spec, row

@@ -77,6 +77,26 @@ def _visibility_rgb(v: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return np.where(covered[..., None], grey[..., None], np.array([0.35, 0.45, 0.6]))
 
 
+def _viridis_lut() -> np.ndarray:
+    from plotly.colors import sample_colorscale, unlabel_rgb
+
+    colours = sample_colorscale("Viridis", list(np.linspace(0, 1, 256)))
+    return np.array([unlabel_rgb(c) for c in colours]) / 255.0
+
+
+def map_rgb(values: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """A technique's diagnostic map in Viridis between its 1st and 99th percentiles (NaN grey);
+    returns the image and that range."""
+    finite = np.isfinite(values)
+    if not finite.any():
+        return np.full(values.shape + (3,), 0.85), float("nan"), float("nan")
+    lo, hi = np.percentile(values[finite], [1, 99])
+    t = np.clip((np.where(finite, values, lo) - lo) / max(hi - lo, 1e-12), 0, 1)
+    rgb = _viridis_lut()[np.round(t * 255).astype(int)]
+    rgb[~finite] = 0.85
+    return rgb, float(lo), float(hi)
+
+
 def _save(rgb: np.ndarray, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray((np.clip(rgb, 0, 1) * 255).astype(np.uint8)).save(path)
@@ -437,6 +457,7 @@ def image_grid(out_dir: Path, scene: str, rows) -> str:
     for technique, r in chosen.items():
         with np.load(out_dir / r["array"]) as z:
             v, cov = z["visibility"], z["covered"]
+            maps = {k.removeprefix("map_"): z[k] for k in z.files if k.startswith("map_")}
         stem = Path(r["array"]).stem
         v_rgb = _visibility_rgb(v, cov)
         _save(v_rgb, out_dir / images / f"{stem}.png")
@@ -448,12 +469,27 @@ def image_grid(out_dir: Path, scene: str, rows) -> str:
             f"<small>{label}; edge_mae {_fmt(r['edge_mae'])}</small></th>"
             f"<td>{img(stem + '.png', f'{technique} V')}</td>"
             f"<td>{img(stem + '-error.png', f'{technique} error')}</td>"
-            + crop_cell(v_rgb, f"{stem}-crop.png", f"{technique} edge crop") + "</tr>")
+            + crop_cell(v_rgb, f"{stem}-crop.png", f"{technique} edge crop")
+            + _maps_cell(out_dir, images, stem, maps) + "</tr>")
     crop_note = (f"rows {crop[0]}–{crop[0] + crop[2]}, columns {crop[1]}–{crop[1] + crop[2]}, "
                  f"enlarged {THUMB_PX / crop[2]:.3g}x" if crop else "no shadow edge")
     return ('<table class="grid"><tr><th></th><th>V</th><th>error V − V<sub>ref</sub> '
-            '(reference: its edge band)</th><th>edge crop (' + crop_note + ")</th></tr>"
+            '(reference: its edge band)</th><th>edge crop (' + crop_note + ")</th>"
+            "<th>the technique's own maps</th></tr>"
             + "".join(trs) + "</table>")
+
+
+def _maps_cell(out_dir: Path, images: Path, stem: str, maps: dict[str, np.ndarray]) -> str:
+    cells = []
+    for name, values in maps.items():
+        rgb, lo, hi = map_rgb(values)
+        file = f"{stem}-map-{_slug(name)}.png"
+        _save(rgb, out_dir / images / file)
+        cells.append(f'<figure><img src="{images}/{file}" alt="{html.escape(name)}" '
+                     f'width="{THUMB_PX}"><figcaption><small>{html.escape(name)}: '
+                     f"{_fmt(lo)} (dark) to {_fmt(hi)} (yellow); grey: none</small>"
+                     "</figcaption></figure>")
+    return f"<td>{''.join(cells)}</td>"
 
 
 # --- the page ----------------------------------------------------------------------------------
@@ -464,7 +500,7 @@ h2{border-top:2px solid #ddd;padding-top:.6em;margin-top:1.6em}
 table{border-collapse:collapse;font-size:13px;margin:.4em 0}
 td,th{border:1px solid #ccc;padding:3px 6px;vertical-align:top;text-align:left}
 td.fail,tr.fail td{background:#fbd5d5} td.pass{background:#e3f4e1} td.skip,td.none{color:#888}
-table.grid img{display:block;image-rendering:pixelated}
+table.grid img{display:block;image-rendering:pixelated} table.grid figure{margin:0}
 table.runs{font-size:11px} details{margin:.6em 0} .meta{font-size:13px;color:#444}
 nav a{margin-right:1em} small{color:#666}
 """

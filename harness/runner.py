@@ -293,8 +293,9 @@ def _one_line(e: BaseException) -> str:
 
 
 def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
-            renderer: str) -> tuple[dict, np.ndarray | None]:
-    """Run one technique on a prepared frame: its row and V (None unless it ran).
+            renderer: str) -> tuple[dict, dict[str, np.ndarray] | None]:
+    """Run one technique on a prepared frame: its row and the arrays to store with it (V,
+    coverage and the technique's diagnostic maps as ``map_<name>``; None unless it ran).
 
     Never raises for a technique's failure: that is the row's status and error."""
     from .technique import NotApplicable, reset_gl_state
@@ -367,7 +368,9 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
         row["flip"] = metrics.flip(shaded, shaded_ref)
     row.update(output.extra)
     row["status"] = "ok"
-    return row, v
+    arrays = {"visibility": v.astype(np.float32), "covered": frame.arrays.covered,
+              **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
+    return row, arrays
 
 
 def reference_array_path(scene: str, width: int, height: int) -> Path:
@@ -464,9 +467,9 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     return 1 if failed else 0
 
 
-def record_run(out_dir: Path, spec: RunSpec, row: dict, v: np.ndarray | None,
-               covered: np.ndarray, reference) -> None:
-    """Store one finished run: the scene's reference arrays (once), V, then the row.
+def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.ndarray] | None,
+               reference) -> None:
+    """Store one finished run: the scene's reference arrays (once), its arrays, then the row.
 
     Arrays are written before their row: a kill between the two leaves an unreferenced array
     that the rerun overwrites. Every executor records through here, the client alone."""
@@ -474,9 +477,9 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, v: np.ndarray | None,
     if not ref_path.is_file():
         _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
                      **({"direct": reference.direct} if reference.direct is not None else {}))
-    if v is not None:
+    if arrays is not None:
         array = ref_path.relative_to(out_dir).with_name(f"{spec.technique}-{spec.run_id}.npz")
-        _save_arrays(out_dir / array, visibility=v.astype(np.float32), covered=covered)
+        _save_arrays(out_dir / array, **arrays)
         row["array"] = str(array)
     row["finished_at"] = _now()
     results.append_row(out_dir, row)
@@ -502,9 +505,9 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
             scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
             for spec in specs:
                 bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
-                row, v = run_one(spec, frame, reference, scene_ms, frags_scene,
+                row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene,
                                  context.renderer)
-                record_run(out_dir, spec, row, v, frame.arrays.covered, reference)
+                record_run(out_dir, spec, row, arrays, reference)
                 yield spec, row
         finally:
             frame.release()
@@ -539,8 +542,8 @@ def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
     frame = Frame(scene)
     try:
         scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
-        row, v = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
-        return Evaluation(row, v, reference, frame.arrays,
+        row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
+        return Evaluation(row, arrays["visibility"] if arrays else None, reference, frame.arrays,
                           frame.compared_pixels(reference.covered))
     finally:
         frame.release()

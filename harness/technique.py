@@ -50,6 +50,8 @@ class ShadowOutput:
     # fragments of the measured passes
     shadow_fragments: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # additional result columns
+    # per-pixel diagnostic maps (float (H, W)), stored with the run and shown by the report
+    maps: dict[str, np.ndarray] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
 

@@ -454,6 +454,8 @@ class WarpedShadowMap(Technique):
         alias = alias_map(self.transform.clip, res, arrays.position, arrays.normal,
                           arrays.covered)
         outside = outside_unit_cube(self.transform.clip, arrays.position, arrays.covered)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.alias_log2 = np.log2(alias)
         self.columns = dict(
             theta_deg=math.degrees(self.transform.theta),
             alias_mean=float(np.nanmean(alias)) if np.isfinite(alias).any() else float("nan"),
@@ -486,7 +488,8 @@ class WarpedShadowMap(Technique):
                             "outside the warped map")
         return frame.output(mem_bytes=self.map.mem_bytes, fetches_per_px=p.k,
                             nonfinite=self.map.nonfinite + count_nonfinite(self.transform.clip),
-                            extra=dict(self.columns), warnings=warnings)
+                            extra=dict(self.columns), warnings=warnings,
+                            maps={"pixels_per_texel_log2": self.alias_log2})
 
     def release(self) -> None:
         self.map.release()

@@ -187,3 +187,19 @@ def test_crop_of_the_image_grid_is_on_the_reference_edge_band(run_dir, built):
     r, c, size = report.edge_crop(ref, covered)
     band = report.metrics.edge_band(ref, mask=covered)
     assert band[r:r + size, c:c + size].sum() > 0.1 * size * size
+
+
+def test_a_techniques_own_maps_are_stored_and_shown(built, run_dir):
+    """lispsm stores its texel-size map with its run; the grid shows it in colour."""
+    _, page = built
+    df = report.current_rows(results.load(run_dir))
+    row = df[(df["technique"] == "lispsm") & (df["scene"] == "box_plane")
+             & (df["width"] == 96)].iloc[0]
+    with np.load(run_dir / row["array"]) as z:
+        texel_map = z["map_pixels_per_texel_log2"]
+    assert texel_map.shape == (96, 96) and np.isfinite(texel_map).any()
+    # the stored map agrees with the run's own column: the largest texel in pixels
+    assert 2 ** np.nanmax(texel_map) == pytest.approx(row["alias_max"], rel=1e-5)
+    png = Path(row["array"]).stem + "-map-pixels_per_texel_log2.png"
+    assert png in page
+    assert (run_dir / "images" / "box_plane" / "96x96" / png).is_file()
