@@ -4,7 +4,8 @@ SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMPS := .make
-DEBS := libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 chromium chromium-driver
+DEBS := python3-venv git libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 chromium \
+	chromium-driver
 OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa

@@ -23,15 +23,56 @@ def _csv_list(text: str) -> list[str]:
 
 
 def cmd_list(args) -> int:
+    """Every technique with each parameter's default and allowed values, then the scenes."""
+    import types
+    import typing
+
+    import annotated_types as at
+    from pydantic import AfterValidator
+    from pydantic_core import PydanticUndefined
+
     from . import config, registry
+
+    def show(value) -> str:
+        if isinstance(value, bool):
+            return str(value).lower()
+        return str(value)
+
+    def allowed(annotation) -> str:
+        """``grid | jitter`` for a Literal, the type's name otherwise (unions joined)."""
+        origin = typing.get_origin(annotation)
+        if origin is typing.Literal:
+            return " | ".join(show(v) for v in typing.get_args(annotation))
+        if origin in (typing.Union, types.UnionType):
+            return " | ".join(allowed(a) for a in typing.get_args(annotation))
+        if annotation is bool:
+            return "true | false"
+        if annotation is type(None):
+            return "none"
+        return getattr(annotation, "__name__", str(annotation))
+
+    def limit(meta) -> str | None:
+        for kind, op in ((at.Ge, ">="), (at.Gt, ">"), (at.Le, "<="), (at.Lt, "<")):
+            if isinstance(meta, kind):
+                return f"{op} {show(getattr(meta, kind.__name__.lower()))}"
+        if isinstance(meta, at.MultipleOf):
+            return f"multiple of {show(meta.multiple_of)}"
+        if isinstance(meta, AfterValidator):
+            if meta.func is square_number:
+                return "square number"
+            return getattr(meta.func, "__name__", None)
+        return None  # other metadata (strictness, ...) says nothing about the range
 
     print("techniques:")
     for name, cls in registry.techniques().items():
         print(f"  {name:10s} {cls.summary}  [{cls.paper}]")
         for pname, field in cls.Params.model_fields.items():
-            limits = " ".join(str(m) for m in field.metadata)
-            annotation = getattr(field.annotation, "__name__", str(field.annotation))
-            print(f"      {pname:12s} default {field.default!r:10s} {annotation} {limits}")
+            default = (field.default_factory() if field.default_factory is not None
+                       else "(required)" if field.default is PydanticUndefined
+                       else field.default)
+            limits = [text for text in map(limit, field.metadata) if text]
+            range_text = ", ".join([allowed(field.annotation)] + limits)
+            print(f"      {pname:14s} default {show(default):11s} {range_text}")
     path = Path(args.scene_file)
     if path.is_file():
         print(f"scenes ({path}):")
@@ -96,7 +137,7 @@ def cmd_reference(args) -> int:
         scene = scene.with_resolution(*args.resolution)
     ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
     out = Path(args.out)
-    path = out / reference_array_path(scene.name, scene.width, scene.height)
+    path = out / reference_array_path(scene.name, scene.width, scene.height, args.samples, 0)
     extra = {"direct": ref.direct} if ref.direct is not None else {}
     _save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
     visibility_png(ref.visibility, ref.covered, path.with_suffix(".png"))
@@ -109,7 +150,10 @@ def cmd_reference(args) -> int:
 def cmd_report(args) -> int:
     from .report import build_report
 
-    index = build_report(args.dir)
+    try:
+        index = build_report(args.dir)
+    except FileNotFoundError as e:  # no results.csv in DIR: the user named the wrong folder
+        raise ConfigError(str(e)) from None
     print(index.resolve())
     return 0
 
@@ -171,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             return args.func(args)
-    except (ConfigError, BackendError, FileNotFoundError) as e:
+    except (ConfigError, BackendError) as e:
         print(f"shadowbench: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -265,24 +265,29 @@ def _line_of(node, path: tuple) -> int | None:
     return line
 
 
-def _clean_loc(loc: tuple) -> tuple:
-    """Drop pydantic's union/discriminator tags (e.g. 'box', 'function-after[...]') from a path."""
+def _clean_loc(loc: tuple, node) -> tuple:
+    """The key path of a pydantic error location in the YAML document. Parts that are not keys
+    or indices of the document (pydantic's union and discriminator tags such as 'box',
+    'function-after[...]', 'bool') are dropped; a missing key at the end is kept."""
     out = []
-    for part in loc:
-        if isinstance(part, str) and ("[" in part or part in _TAGS):
-            continue
-        out.append(part)
+    for i, part in enumerate(loc):
+        last = i == len(loc) - 1
+        if isinstance(node, yaml.MappingNode):
+            child = next((v for k, v in node.value if k.value == str(part)), None)
+            if child is not None or (last and "[" not in str(part)):
+                out.append(part)
+                node = child
+        elif isinstance(node, yaml.SequenceNode) and isinstance(part, int):
+            out.append(part)
+            node = node.value[part] if part < len(node.value) else None
+        elif node is None and "[" not in str(part):
+            out.append(part)
     return tuple(out)
-
-
-_TAGS = {
-    "plane", "box", "sphere", "cylinder", "capsule", "lathe", "mesh", "directional", "spot",
-}
 
 
 def format_validation_error(path: Path, err: ValidationError, root_node, prefix=()) -> str:
     first = err.errors()[0]
-    loc = prefix + _clean_loc(tuple(first["loc"]))
+    loc = _clean_loc(prefix + tuple(first["loc"]), root_node)
     msg = first["msg"].removeprefix("Value error, ")
     if first["type"] == "extra_forbidden":
         msg = "unknown key"

@@ -70,6 +70,10 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
                   platform_name: str | None = None):
     """A renderer for :func:`harness.runner.execute` that sends each run to a Dask cluster:
     the one at ``scheduler``, or a new LocalCluster of ``n_workers`` one-thread workers."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise ConfigError("--executor dask needs Dask: pip install 'shadowbench[dask]'") from None
 
     def render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
         from distributed import Client, LocalCluster, as_completed

@@ -10,6 +10,8 @@ import numpy as np
 from scipy import ndimage
 
 EDGE_WIDTH = 2  # pixels either side of a reference shadow boundary
+# part of every run id: a change to what the metrics compare makes stored results stale
+VERSION = 2
 
 
 def _check(v: np.ndarray, ref: np.ndarray, mask: np.ndarray | None):

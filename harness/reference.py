@@ -16,8 +16,10 @@ import hashlib
 import math
 import os
 import re
+import tempfile
 import time
 import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -228,10 +230,13 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     square_number(samples)
     path = cache_dir() / f"{cache_key(scene, samples, seed)}.npz"
     if use_cache and path.is_file():
-        with np.load(path) as z:
-            direct = z["direct"] if z["direct"].size else None
-            return Reference(z["visibility"], z["covered"], direct, float(z["seconds"]),
-                             str(z["variant"]), cached=True)
+        try:
+            with np.load(path) as z:
+                direct = z["direct"] if z["direct"].size else None
+                return Reference(z["visibility"], z["covered"], direct, float(z["seconds"]),
+                                 str(z["variant"]), cached=True)
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+            pass  # an unreadable cache entry is a miss: trace again and replace it
     variant = variant or choose_variant()
     mi = _mitsuba(variant)
     start = time.perf_counter()
@@ -258,9 +263,12 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
                     time.perf_counter() - start, variant)
     if use_cache:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez_compressed(tmp, visibility=ref.visibility, covered=ref.covered,
-                            direct=direct if direct is not None else np.zeros(0, np.float32),
-                            seconds=ref.seconds, variant=variant)
+        # a name of its own: processes sharing the cache (Dask workers) may trace one scene
+        # at once, and each must replace the entry whole
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp.npz")
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, visibility=ref.visibility, covered=ref.covered,
+                                direct=direct if direct is not None else np.zeros(0, np.float32),
+                                seconds=ref.seconds, variant=variant)
         os.replace(tmp, path)
     return ref

@@ -52,9 +52,7 @@ PLOT_CONFIG = {"displaylogo": False, "responsive": True}
 # --- images ------------------------------------------------------------------------------------
 
 def visibility_png(v: np.ndarray, covered: np.ndarray, path: Path) -> None:
-    grey = np.clip(v, 0, 1) * 0.85 + 0.15
-    rgb = np.where(covered[..., None], grey[..., None], np.array([0.35, 0.45, 0.6]))
-    _save(rgb, path)
+    _save(_visibility_rgb(v, covered), path)
 
 
 def error_rgb(v: np.ndarray, ref: np.ndarray, covered: np.ndarray) -> np.ndarray:
@@ -66,10 +64,6 @@ def error_rgb(v: np.ndarray, ref: np.ndarray, covered: np.ndarray) -> np.ndarray
     rgb[..., 0] -= np.clip(-d, 0, 1)
     rgb[~covered] = 0.85
     return rgb
-
-
-def error_png(v: np.ndarray, ref: np.ndarray, covered: np.ndarray, path: Path) -> None:
-    _save(error_rgb(v, ref, covered), path)
 
 
 def _visibility_rgb(v: np.ndarray, covered: np.ndarray) -> np.ndarray:
@@ -425,7 +419,8 @@ def image_grid(out_dir: Path, scene: str, rows) -> str:
     ok = rows[(rows["status"] == "ok") & (rows["array"] != "")]
     for w, h in sorted({(w, h) for w, h in zip(ok["width"], ok["height"])},
                        key=lambda r: -r[0] * r[1]):
-        ref_file = out_dir / "arrays" / scene / f"{w}x{h}" / "reference.npz"
+        at_size = ok[(ok["width"] == w) & (ok["height"] == h)]
+        ref_file = out_dir / at_size["reference_array"].iloc[0]
         if ref_file.is_file():
             break
     else:

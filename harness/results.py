@@ -27,6 +27,7 @@ COLUMNS: dict[str, type] = {
     "nonfinite": float, "v_min": float, "v_max": float,
     "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
     "code_version": str, "ref_samples": int, "ref_seconds": float, "array": str,
+    "reference_array": str,
     "finished_at": str,
 }
 RESULTS_FILE = "results.csv"
@@ -66,12 +67,15 @@ def write_rows(out_dir: str | Path, rows: list[dict]) -> None:
     os.replace(tmp, out_dir / RESULTS_FILE)
 
 
-def append_row(out_dir: str | Path, row: dict) -> None:
-    write_rows(out_dir, read_rows(out_dir) + [row])
+def record_row(out_dir: str | Path, row: dict) -> None:
+    """Add a run's row, replacing an earlier row of the same run (a failed run retried)."""
+    kept = [r for r in read_rows(out_dir) if r["run_id"] != row["run_id"]]
+    write_rows(out_dir, kept + [row])
 
 
 def done_ids(out_dir: str | Path) -> set[str]:
-    return {r["run_id"] for r in read_rows(out_dir)}
+    """Runs that need no rendering again: finished ok or skipped. Failed runs are retried."""
+    return {r["run_id"] for r in read_rows(out_dir) if r["status"] in ("ok", "skipped")}
 
 
 def load(out_dir: str | Path):

@@ -51,9 +51,10 @@ class RunSpec:
 
     @property
     def run_id(self) -> str:
-        text = "|".join(map(str, (self.scene_key, self.width, self.height, self.technique,
-                                  self.params_json, self.code_version, self.frames,
-                                  self.warmup, self.samples, self.ref_seed)))
+        text = "|".join(map(str, (self.scene, self.scene_key, self.width, self.height,
+                                  self.technique, self.params_json, self.code_version,
+                                  self.frames, self.warmup, self.samples, self.ref_seed,
+                                  metrics.VERSION)))
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -327,8 +328,8 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
         if technique is not None:
             try:
                 technique.release()
-            except Exception:  # the run's result stands; a failed release only leaks
-                pass
+            except Exception as e:  # the run's result stands; a failed release only leaks
+                row["warnings"] = f"release failed: {_one_line(e)}"
         reset_gl_state()
 
     v = output.visibility
@@ -346,7 +347,7 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
         nonfinite=output.nonfinite + metrics.nonfinite(v),
         v_min=float(np.nanmin(v)) if v.size else None,
         v_max=float(np.nanmax(v)) if v.size else None,
-        warnings="; ".join(output.warnings),
+        warnings="; ".join(output.warnings + ([row["warnings"]] if "warnings" in row else [])),
     )
     v_clean = np.nan_to_num(v, nan=0.5, posinf=1.0, neginf=0.0)
     ref_v = reference.visibility
@@ -373,8 +374,10 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
     return row, arrays
 
 
-def reference_array_path(scene: str, width: int, height: int) -> Path:
-    return Path("arrays") / scene / f"{width}x{height}" / "reference.npz"
+def reference_array_path(scene: str, width: int, height: int, samples: int, seed: int) -> Path:
+    """Where a run directory keeps a scene's reference: one file per sampling, so a rerun with
+    other reference settings never scores against, or shows, a stale one."""
+    return Path("arrays") / scene / f"{width}x{height}" / f"reference-{samples}spp-seed{seed}.npz"
 
 
 @contextmanager
@@ -426,10 +429,8 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     out_dir.mkdir(parents=True, exist_ok=True)
     with _exclusive(out_dir):
         done = results.done_ids(out_dir)
-        pending = [r for r in plan.runs if r.run_id not in done]
-        planned = {s.run_id for s in plan.runs}
-        failed = sum(1 for r in results.read_rows(out_dir)
-                     if r["status"] == "error" and r["run_id"] in planned)
+        pending = [r for r in plan.runs if r.run_id not in done]  # failed ones are retried
+        failed = 0
         from .gl.context import get_context
 
         context = get_context(platform_name)
@@ -473,7 +474,9 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
 
     Arrays are written before their row: a kill between the two leaves an unreferenced array
     that the rerun overwrites. Every executor records through here, the client alone."""
-    ref_path = out_dir / reference_array_path(spec.scene, spec.width, spec.height)
+    ref_path = out_dir / reference_array_path(spec.scene, spec.width, spec.height, spec.samples,
+                                              spec.ref_seed)
+    row["reference_array"] = str(ref_path.relative_to(out_dir))
     if not ref_path.is_file():
         _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
                      **({"direct": reference.direct} if reference.direct is not None else {}))
@@ -482,7 +485,7 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
         _save_arrays(out_dir / array, **arrays)
         row["array"] = str(array)
     row["finished_at"] = _now()
-    results.append_row(out_dir, row)
+    results.record_row(out_dir, row)
 
 
 def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
@@ -499,7 +502,7 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
         scene = plan.scenes[scene_name].with_resolution(width, height)
         bar.set_description_str(f"{scene_name} {width}x{height}: reference")
         reference = compute_reference(scene, samples=samples, seed=ref_seed)
-        frame = Frame(scene, seed=ref_seed)
+        frame = Frame(scene)
         try:
             frames, warmup = specs[0].frames, specs[0].warmup
             scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)

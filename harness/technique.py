@@ -95,10 +95,9 @@ class Technique:
 class Frame:
     """Everything a technique may use for one scene at one resolution, owned by the harness."""
 
-    def __init__(self, scene: BuiltScene, *, seed: int = 0):
+    def __init__(self, scene: BuiltScene):
         self.scene = scene
         self.width, self.height = scene.width, scene.height
-        self.seed = seed
         self.camera = camera_matrices(scene.config.camera, self.width, self.height)
         self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
         self.gbuffer = GBuffer(self.width, self.height)
@@ -183,8 +182,11 @@ def reset_gl_state() -> None:
         pass
 
 
-_SIBLING_IMPORT = re.compile(r"^\s*from\s+(?:\.|\w+\.)(\w+)\s+import|^\s*import\s+\w+\.(\w+)",
-                             re.M)
+# sibling modules a technique module imports: ``from .x import``, ``from pkg.x import``,
+# ``import pkg.x`` and ``from . import x, y``
+_SIBLING_IMPORT = re.compile(
+    r"^\s*(?:from\s+(?:\.|\w+\.)(\w+)\s+import|import\s+\w+\.(\w+)|from\s+\.\s+import\s+([\w, ]+))",
+    re.M)
 _GLSL_NAME = re.compile(r"[\w.]+\.glsl")
 
 
@@ -198,8 +200,9 @@ def _code_files(start: Path) -> list[bytes]:
             continue
         seen.add(path)
         text = path.read_text()
-        names = [f"{a or b}.py" for a, b in _SIBLING_IMPORT.findall(text)] if path.suffix == ".py" \
-            else []
+        names = [f"{name.strip()}.py" for groups in _SIBLING_IMPORT.findall(text)
+                 for name in ",".join(groups).split(",") if name.strip()] \
+            if path.suffix == ".py" else []
         names += _GLSL_NAME.findall(text)
         queue.extend(folder / n for n in names)
         queue.extend(HARNESS_GLSL / n for n in _GLSL_NAME.findall(text)

@@ -103,7 +103,7 @@ class Runs:
             return v, covered, z["visibility"], z["covered"]
 
     def _reference(self, row) -> Path:
-        return self.root / self.name / Path(row["array"]).parent / "reference.npz"
+        return self.root / self.name / row["reference_array"]
 
     def image(self, row, label: str) -> dict:
         return {"label": label, "array": f"{self.name}/{row['array']}",

@@ -10,8 +10,9 @@ import math
 from typing import Literal
 
 from OpenGL import GL
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_serializer, model_validator
 
+from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
@@ -64,7 +65,9 @@ class MultipleDepthShadowMap(Technique):
     (``extra: min``) for n = 2 and both for n = 3; ``sort`` sorts the q samples into n groups and
     keeps each group's middle sample, the base depth replacing its own group's), ``shading``
     (k fetches per pixel). For n = 1 the n-SM is the standard map: no selection pass runs and V
-    equals pcf's with the same k, res and bias.
+    equals pcf's with the same k, res and bias. ``extra`` applies to n = 2 with minmax only:
+    setting it otherwise is an error, and there it is left out of the stored parameters (so
+    they validate again).
 
     The n-shadow test returns the fraction of the cell's n depths that are not closer to the
     light than the point after bias (1 = lit): n + 1 equally spaced outcomes, exactly Williams'
@@ -101,40 +104,33 @@ class MultipleDepthShadowMap(Technique):
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
-        n: int = 2
-        k: int = 9
-        q: int = 9
+        n: Literal[1, 2, 3, 4] = 2
+        k: SquareInt = Field(9, le=64)
+        q: Literal[4, 9, 16, 25] = 9
         select: Literal["minmax", "sort"] = "minmax"
-        extra: Literal["max", "min"] | None = None
+        # meaningful for n = 2 with minmax only; a concrete default so one configuration has
+        # one run id
+        extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(0.0, ge=0)
 
-        @field_validator("n")
+        @field_validator("n", "k", "q", mode="wrap")
         @classmethod
-        def _depth_count(cls, n):
-            if n not in DEPTH_COUNTS:
-                raise ValueError(f"n must be one of {list(DEPTH_COUNTS)}; got {n}")
-            return n
-
-        @field_validator("k")
-        @classmethod
-        def _kernel(cls, k):
-            if k not in KERNEL_SAMPLES:
-                raise ValueError(f"k must be a square number, one of {list(KERNEL_SAMPLES)}; "
-                                 f"got {k}")
-            return k
-
-        @field_validator("q")
-        @classmethod
-        def _window(cls, q):
-            if q not in WINDOW_SAMPLES:
-                raise ValueError(f"q must be a square window, one of {list(WINDOW_SAMPLES)}; "
-                                 f"got {q}")
-            return q
+        def _name_allowed_values(cls, value, handler, info):
+            """The annotations say what is allowed (``shadowbench list`` shows it); the error
+            lists every allowed value."""
+            try:
+                return handler(value)
+            except ValidationError:
+                what = {"n": ("n must be one of", DEPTH_COUNTS),
+                        "k": ("k must be a square number, one of", KERNEL_SAMPLES),
+                        "q": ("q must be a square window, one of", WINDOW_SAMPLES)}
+                text, allowed = what[info.field_name]
+                raise ValueError(f"{text} {list(allowed)}; got {value!r}") from None
 
         @model_validator(mode="after")
         def _combination(self):
-            if self.extra is not None and (self.n != 2 or self.select != "minmax"):
+            if "extra" in self.model_fields_set and not self.uses_extra:
                 raise ValueError(f"extra ({self.extra}) applies only to n=2 with "
                                  f"select=minmax; got n={self.n}, select={self.select}")
             if self.select == "minmax" and self.n == 4:
@@ -142,10 +138,22 @@ class MultipleDepthShadowMap(Technique):
                                  "n=4 needs select=sort")
             return self
 
+        @model_serializer(mode="wrap")
+        def _without_unused_extra(self, handler):
+            """``extra`` only where it applies, so the dumped parameters validate again."""
+            data = handler(self)
+            if not self.uses_extra:
+                data.pop("extra", None)
+            return data
+
+        @property
+        def uses_extra(self) -> bool:
+            return self.n == 2 and self.select == "minmax"
+
         @property
         def extra_depth(self) -> str:
             """The window extreme kept besides the base depth for n = 2 with minmax."""
-            return self.extra or "max"
+            return self.extra
 
     def prepare(self, frame: Frame) -> None:
         p = self.params

@@ -155,13 +155,8 @@ class SilhouetteMap(Technique):
 
     def silhouette_points(self) -> np.ndarray:
         """The silhouette map as (res, res, 2) texel-local points, row j = map row j."""
-        # Framebuffer.read cannot read RG (PyOpenGL has no component count for GL_RG)
-        self.silhouette_fbo.bind()
-        GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
-        res = self.params.res
-        return np.stack([np.asarray(GL.glReadPixels(0, 0, res, res, channel, GL.GL_FLOAT),
-                                    np.float32).reshape(res, res)
-                         for channel in (GL.GL_RED, GL.GL_GREEN)], axis=2)
+        # read() returns row 0 at the top; map rows count from the bottom
+        return np.ascontiguousarray(self.silhouette_fbo.read(0)[::-1])
 
     def release(self) -> None:
         for resource in (self.depth_map, self.silhouette_fbo, self.quads, self.map_program,

@@ -23,6 +23,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import Field
 
+from harness import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, NotApplicable, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, look_at
@@ -411,10 +412,6 @@ def alias_map(clip: np.ndarray, res: int, position: np.ndarray, normal: np.ndarr
     return alias
 
 
-def count_nonfinite(*arrays) -> int:
-    return int(sum(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=np.float64))) for a in arrays))
-
-
 # --- the technique shared by psm, lispsm and gmnpr ------------------------------------------
 
 PARAMETER_TABLE = """
@@ -487,10 +484,13 @@ class WarpedShadowMap(Technique):
             warnings.append(f"{self.columns['outside_pct']:.2f}% of visible receivers fall "
                             "outside the warped map")
         return frame.output(mem_bytes=self.map.mem_bytes, fetches_per_px=p.k,
-                            nonfinite=self.map.nonfinite + count_nonfinite(self.transform.clip),
+                            nonfinite=self.map.nonfinite + metrics.nonfinite(self.transform.clip),
                             extra=dict(self.columns), warnings=warnings,
                             maps={"pixels_per_texel_log2": self.alias_log2})
 
     def release(self) -> None:
-        self.map.release()
-        self.shading.release()
+        # prepare may have stopped early (NotApplicable for a spot light, a failed compile)
+        for name in ("map", "shading"):
+            resource = self.__dict__.pop(name, None)
+            if resource is not None:
+                resource.release()

@@ -45,7 +45,9 @@ def test_run_end_to_end(small_scene_file, tmp_path, gl_context):
         with np.load(out / r["array"]) as z:
             assert z["visibility"].shape == (48, 64) and z["visibility"].dtype == np.float32
             assert z["covered"].dtype == bool
-    assert (out / "arrays/box_plane/64x48/reference.npz").is_file()
+    assert (out / "arrays/box_plane/64x48/reference-16spp-seed0.npz").is_file()
+    assert {r["reference_array"] for r in rows if r["scene"] == "box_plane"} == {
+        "arrays/box_plane/64x48/reference-16spp-seed0.npz"}
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["gl"]["renderer"] and manifest["finished"]
     assert "box_plane" in proc.stderr  # progress names the scene
@@ -112,5 +114,22 @@ def test_reference_command(small_scene_file, tmp_path, capsys):
     code = cli.main(["reference", "--scene", "box_plane", "--scene-file", str(scene_file),
                      "--out", str(tmp_path / "ref"), "--samples", "4"])
     assert code == 0
-    assert (tmp_path / "ref/arrays/box_plane/64x48/reference.npz").is_file()
+    assert (tmp_path / "ref/arrays/box_plane/64x48/reference-4spp-seed0.npz").is_file()
     assert "llvm_ad_rgb" in capsys.readouterr().out
+
+
+def test_list_shows_readable_defaults_and_ranges(capsys):
+    assert cli.main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+
+    def param_line(technique, param):
+        start = next(i for i, line in enumerate(lines) if line.split()[:1] == [technique])
+        return next(line for line in lines[start + 1:] if line.split()[:1] == [param])
+
+    assert "grid | jitter" in param_line("pcf", "sampling")
+    assert "square" in param_line("pcf", "k")
+    assert ">= 16" in param_line("pcf", "res") and "<= 8192" in param_line("pcf", "res")
+    assert "1 | 2 | 3 | 4" in param_line("mdsm", "n")
+    text = "\n".join(lines)
+    assert "function" not in text and "object at 0x" not in text
+    assert "AfterValidator" not in text and "Literal" not in text

@@ -131,3 +131,11 @@ def test_shipped_scenes_validate():
 
     scenes = config.load_scenes(SCENE_FILE)
     assert {"sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long"} <= set(scenes)
+
+
+def test_scene_named_like_a_shape_keeps_its_name_in_the_key_path(tmp_path):
+    path = tmp_path / "scenes.yaml"
+    scene = _with(("camera", "yfov"), 190)
+    path.write_text(yaml.safe_dump({"scenes": {"sphere": scene}}, sort_keys=False))
+    with pytest.raises(config.ConfigError, match=r"scenes\.sphere\.camera\.yfov: must be in"):
+        config.load_scenes(path)

@@ -118,11 +118,11 @@ def test_theta_sweep_matrices_and_unit_cube(shipped_scenes, gl_context):
             assert math.degrees(setup.theta) == pytest.approx(theta_deg, abs=1e-5)
             for choose in (W.lambda_lispsm, W.lambda_gmnpr):
                 warp = W.light_space_warp(setup, MAP_RES, choose)
-                assert W.count_nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
+                assert metrics.nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
                 assert warp.lam > 0
                 assert not W.outside_unit_cube(warp.clip, arrays.position, arrays.covered).any()
             psm = W.post_perspective_warp(setup, MAP_RES)
-            assert W.count_nonfinite(psm.clip, psm.frustum.proj) == 0
+            assert metrics.nonfinite(psm.clip, psm.frustum.proj) == 0
             psm_outside[(theta_deg, behind)] = W.outside_unit_cube(
                 psm.clip, arrays.position, arrays.covered).mean()
     failing = sorted(k for k, v in psm_outside.items() if v > 0)

@@ -1,11 +1,17 @@
 """Discovery through entry points, and the technique contract every registered one keeps."""
 
+import ast
+import inspect
 from importlib.metadata import EntryPoint
+from pathlib import Path
 
+import numpy as np
 import pytest
+from pydantic import ValidationError
 
+import techniques as techniques_package
 from harness import registry
-from harness.technique import Technique
+from harness.technique import Frame, NotApplicable, Technique, _code_files, reset_gl_state
 
 
 def test_builtins_register_through_the_entry_point_group():
@@ -41,8 +47,83 @@ def test_entry_point_name_must_match_class_name(monkeypatch):
         registry.techniques.cache_clear()
 
 
-@pytest.mark.parametrize("name", list(registry.techniques()))
-def test_technique_contract(name):
+TECHNIQUES = list(registry.techniques())
+TECHNIQUE_DIR = Path(techniques_package.__file__).resolve().parent
+GL_NAME_RANGE = range(1, 2001)
+
+
+def live_gl_names() -> dict[str, set[int]]:
+    """The GL names alive now, by object kind (textures, framebuffers, programs, buffers, VAOs)."""
+    from OpenGL import GL
+
+    checks = {"texture": GL.glIsTexture, "framebuffer": GL.glIsFramebuffer,
+              "program": GL.glIsProgram, "buffer": GL.glIsBuffer,
+              "vertex array": GL.glIsVertexArray}
+    return {kind: {i for i in GL_NAME_RANGE if is_live(i)} for kind, is_live in checks.items()}
+
+
+def leaked(before: dict[str, set[int]], after: dict[str, set[int]]) -> dict[str, list[int]]:
+    return {kind: sorted(after[kind] - before[kind]) for kind in after
+            if after[kind] - before[kind]}
+
+
+def run_contract(cls, scene):
+    """prepare, two measured renders, release, as the runner does; asserts that no GL object
+    outlives the technique and the frame. Returns (outputs, passes), or (None, None) when the
+    technique does not apply to the scene."""
+    before = live_gl_names()
+    frame = Frame(scene)
+    technique = cls(cls.Params())
+    outputs, passes = [], None
+    try:
+        try:
+            technique.prepare(frame)
+        except NotApplicable:
+            outputs = None
+        else:
+            for _ in range(2):
+                frame.meter.new_frame(True)
+                outputs.append(technique.render(frame))
+            passes = frame.meter.passes()
+    finally:
+        technique.release()  # also after NotApplicable: the runner releases every technique
+        frame.release()
+        reset_gl_state()
+    gone = leaked(before, live_gl_names())
+    assert not gone, f"{cls.name} leaks GL objects on {scene.name}: {gone}"
+    return outputs, passes
+
+
+def check_output(name, output, height, width):
+    v = output.visibility
+    assert isinstance(v, np.ndarray) and v.dtype == np.float32, (name, type(v), v.dtype)
+    assert v.shape == (height, width), (name, v.shape)
+    assert not np.isnan(v).any(), f"{name}: NaN in V"
+    assert v.min() >= 0.0 and v.max() <= 1.0, (name, v.min(), v.max())
+    assert output.mem_bytes >= 0, (name, output.mem_bytes)
+    assert output.fetches_per_px >= 0, (name, output.fetches_per_px)
+
+
+@pytest.mark.parametrize("scene_name", ["box_plane", "sphere_plane"])
+@pytest.mark.parametrize("name", TECHNIQUES)
+def test_technique_contract(name, scene_name, gl_context, scene_at):
+    """Every registered technique renders V of the frame's shape in [0, 1] through at least one
+    measured pass, reports non-negative costs and frees every GL object it made. Directional
+    box_plane suits all of them; on the spot-lit sphere_plane a technique may be NotApplicable."""
+    cls = registry.get(name)
+    width, height = 48, 32
+    scene = scene_at(scene_name, width, height)
+    outputs, passes = run_contract(cls, scene)
+    if outputs is None:
+        assert scene_name != "box_plane", f"{name} must apply to a directional light"
+        pytest.skip(f"{name} does not apply to {scene_name}")
+    for output in outputs:
+        check_output(name, output, height, width)
+    assert passes, f"{name}: no measured pass"
+
+
+@pytest.mark.parametrize("name", TECHNIQUES)
+def test_technique_declaration(name):
     cls = registry.get(name)
     assert issubclass(cls, Technique)
     assert cls.summary and cls.paper
@@ -50,9 +131,47 @@ def test_technique_contract(name):
     for param in cls.Params.model_fields:
         assert f"``{param}``" in doc, f"{name}: parameter {param} missing from the docstring table"
     cls.Params()  # defaults are valid
-    with pytest.raises(Exception):
+    with pytest.raises(ValidationError, match="no_such_parameter"):
         cls.Params(no_such_parameter=1)
-    assert cls.code_version() == cls.code_version() and len(cls.code_version()) == 12
+    version = cls.code_version()
+    assert len(version) == 12 and all(c in "0123456789abcdef" for c in version)
+
+
+def sibling_imports(path: Path) -> set[Path]:
+    """The ``techniques/*.py`` modules ``path`` imports: ``from . import x``, ``from .x import y``,
+    ``from techniques.x import y``, ``import techniques.x``."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        names = []
+        if isinstance(node, ast.ImportFrom):
+            if node.level == 1 and node.module is None:
+                names = [alias.name for alias in node.names]
+            elif node.level == 1:
+                names = [node.module.split(".")[0]]
+            elif node.level == 0 and (node.module or "").startswith("techniques."):
+                names = [node.module.split(".")[1]]
+            elif node.level == 0 and node.module == "techniques":
+                names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.Import):
+            names = [alias.name.split(".")[1] for alias in node.names
+                     if alias.name.startswith("techniques.")]
+        found |= {TECHNIQUE_DIR / f"{n}.py" for n in names if (TECHNIQUE_DIR / f"{n}.py").is_file()}
+    return found
+
+
+@pytest.mark.parametrize("name", TECHNIQUES)
+def test_code_version_covers_imported_sibling_modules(name):
+    """A change to a helper module a technique imports (directly or through another helper)
+    changes its code version."""
+    source = Path(inspect.getsourcefile(registry.get(name))).resolve()
+    hashed = set(_code_files(source))
+    wanted, queue = set(), [source]
+    while queue:
+        for module in sibling_imports(queue.pop()) - wanted:
+            wanted.add(module)
+            queue.append(module)
+    missing = [m.name for m in sorted(wanted) if m.name.encode() + m.read_bytes() not in hashed]
+    assert not missing, f"{name}: code version ignores imported {missing}"
 
 
 def test_unknown_technique_lists_registered():

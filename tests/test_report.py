@@ -183,7 +183,7 @@ def test_scatter_offers_flip_only_where_the_scene_is_shaded(run_dir):
 
 
 def test_crop_of_the_image_grid_is_on_the_reference_edge_band(run_dir, built):
-    with np.load(run_dir / "arrays" / "box_plane" / "96x96" / "reference.npz") as z:
+    with np.load(run_dir / "arrays" / "box_plane" / "96x96" / "reference-4spp-seed0.npz") as z:
         ref, covered = z["visibility"], z["covered"]
     r, c, size = report.edge_crop(ref, covered)
     band = report.metrics.edge_band(ref, mask=covered)

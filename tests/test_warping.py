@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
+from harness import metrics
 from harness.transforms import look_at
 from techniques import warping as W
 
@@ -188,7 +189,7 @@ def test_random_configurations_matrix_properties(case):
     points = visible_samples(setup, seed)
     for choose in (W.lambda_lispsm, W.lambda_gmnpr):
         warp = W.light_space_warp(setup, 256, choose)
-        assert W.count_nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
+        assert metrics.nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
         assert 0 < warp.lam <= W.LAMBDA_MAX
         # the map is the frustum's view and proj: their product is the warp
         assert np.allclose(warp.frustum.proj @ warp.frustum.view, warp.clip, rtol=1e-9,
@@ -206,5 +207,5 @@ def test_random_configurations_matrix_properties(case):
         assert np.allclose(moved[:, :2] / moved[:, 3:], c[:, :2] / w[:, None], atol=1e-7 * scale)
         assert np.all(moved[:, 2] / moved[:, 3] > c[:, 2] / w)
     psm = W.post_perspective_warp(setup, 256)
-    assert W.count_nonfinite(psm.clip, psm.frustum.proj) == 0
+    assert metrics.nonfinite(psm.clip, psm.frustum.proj) == 0
     assert psm.slide_back >= 0

@@ -66,6 +66,7 @@ class Framebuffer:
         status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
         if status != GL.GL_FRAMEBUFFER_COMPLETE:
+            self.release()
             raise RuntimeError(f"framebuffer {width}x{height} incomplete: status 0x{status:x}")
 
     @property

@@ -57,15 +57,20 @@ class Program:
         stages = [(GL.GL_VERTEX_SHADER, vertex), (GL.GL_FRAGMENT_SHADER, fragment)]
         if geometry is not None:
             stages.append((GL.GL_GEOMETRY_SHADER, geometry))
-        shaders = [_compile(kind, preprocess(p, defines), Path(p).name) for kind, p in stages]
-        self.id = GL.glCreateProgram()
-        for s in shaders:
-            GL.glAttachShader(self.id, s)
-        GL.glLinkProgram(self.id)
-        for s in shaders:
-            GL.glDeleteShader(s)
+        shaders = []
+        try:  # a failed stage must not leave the stages compiled before it alive
+            for kind, path in stages:
+                shaders.append(_compile(kind, preprocess(path, defines), Path(path).name))
+            self.id = GL.glCreateProgram()
+            for s in shaders:
+                GL.glAttachShader(self.id, s)
+            GL.glLinkProgram(self.id)
+        finally:
+            for s in shaders:
+                GL.glDeleteShader(s)
         if not GL.glGetProgramiv(self.id, GL.GL_LINK_STATUS):
             log = GL.glGetProgramInfoLog(self.id).decode(errors="replace").strip()
+            GL.glDeleteProgram(self.id)
             raise ShaderError(f"{Path(vertex).name}+{Path(fragment).name} did not link: {log}")
         self._locations: dict[str, int] = {}
 
