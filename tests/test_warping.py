@@ -59,6 +59,8 @@ def test_lambda_equation_8_gmnpr(theta_deg):
         expected = math.sqrt(F * N) / (2 * F) / math.tan(math.pi * theta / (4 * PHI))
     assert float(W.lambda_gmnpr(theta, PHI, N, F)) == pytest.approx(expected, rel=1e-12)
     assert expected > 0
+    if theta >= PHI:  # and, independently of the printed formula: it is the minimum norm
+        assert expected == pytest.approx(minimum_norm_by_root(theta, PHI, N, F), rel=1e-9)
 
 
 @pytest.mark.parametrize("theta_deg", THETAS)
