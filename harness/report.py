@@ -569,7 +569,8 @@ def build_report(out_dir: str | Path) -> Path:
 {_meta_html(meta, len(everything), len(rows))}
 <nav>{nav} <a href="#stability">stability</a></nav>
 <p>Errors compare each technique's light visibility V (1 = lit) with a ray-traced Mitsuba
-reference on the pixels both cover. Error images: red = lit where the reference is in shadow,
+reference on the pixels both cover and the light reaches (surfaces facing it, inside a spot's
+cone; elsewhere V changes nothing). Error images: red = lit where the reference is in shadow,
 blue = shadowed where it is lit. Built {built} from stored results.</p>
 {''.join(sections)}
 <section id="stability">
