@@ -499,6 +499,27 @@ def sv_claims(runs: Runs) -> list[Claim]:
     return claims
 
 
+SV_INSIDE_WRONG_PCT = 10.0  # z-pass with the viewer inside a volume: visibly wrong
+SV_RIGHT_PCT = 0.5  # a count the method claims right: wrong on under 0.5 % of pixels
+
+
+def sv_camera_claims(runs: Runs) -> list[Claim]:
+    zpass = runs.one("sv", "camera_in_shadow", method="zpass")
+    zfail = runs.one("sv", "camera_in_shadow", method="zfail")
+    wrong = (float(zpass["wrong_pct"]), float(zfail["wrong_pct"]))
+    return [Claim(
+        SV, "Section 2", "with the viewer inside a shadow volume the plain count is wrong; "
+        "counting behind the surface (z-fail) is right",
+        "the viewer inside a volume needs the volume closed at the near plane",
+        f"wrong_pct z-pass {_g(wrong[0])} %, z-fail {_g(wrong[1])} %",
+        f"z-pass > {SV_INSIDE_WRONG_PCT:g} %, z-fail < {SV_RIGHT_PCT:g} %",
+        wrong[0] > SV_INSIDE_WRONG_PCT and wrong[1] < SV_RIGHT_PCT,
+        why_not="the camera_in_shadow view does not put the camera inside a volume, or z-fail "
+                "miscounts", experiment=runs.name,
+        images=[runs.image(zpass, "z-pass, camera inside the volume"),
+                runs.image(zfail, "z-fail (Carmack's reverse)")])]
+
+
 # --- Zhang, Sun, Zhao, Wang 2007 -------------------------------------------------------------
 
 GMNPR_SETUP = dict(n=1.0, f=100.0, phi=math.pi / 6)  # Figure 6's configuration
@@ -598,7 +619,8 @@ def gmnpr_claims(runs: Runs) -> list[Claim]:
 
 # experiment directory -> its claims
 EXPERIMENTS = {"pcf": pcf_claims, "mdsm": mdsm_claims, "mdsm_crossover": mdsm_crossover_claims,
-               "silhouette": silhouette_claims, "sv": sv_claims, "gmnpr": gmnpr_claims}
+               "silhouette": silhouette_claims, "sv": sv_claims, "sv_camera": sv_camera_claims,
+               "gmnpr": gmnpr_claims}
 
 
 def evaluate(root: str | Path) -> list[Claim]:
