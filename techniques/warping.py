@@ -8,9 +8,10 @@ fit of the warped body to the unit cube, the lambda formulas of Zhang et al. (eq
 of "Generalized Minimum-Norm Perspective Shadow Maps") and its analytic aliasing F (equation 2).
 
 Every map is expressed as a :class:`harness.transforms.LightFrustum`: ``view`` is a rigid light
-basis whose -z is the light's travel direction, so map depth stays the linear distance along the
-light; ``proj`` carries the whole warp. A texel is one world light ray in all three warps, so that
-linear depth orders occluders correctly within a texel.
+basis whose -z is the light's travel direction, centred on the camera (a local origin, so the
+float32 GL passes keep their precision far from the world origin), so map depth stays the linear
+distance along the light; ``proj`` carries the whole warp. A texel is one world light ray in
+all three warps, so that linear depth orders occluders correctly within a texel.
 """
 
 from __future__ import annotations
@@ -247,10 +248,25 @@ def cube_fit(clip: np.ndarray, receivers: np.ndarray, body: np.ndarray) -> np.nd
     return fit @ clip
 
 
-def frustum_from_clip(light_view: np.ndarray, clip: np.ndarray, res: int) -> LightFrustum:
-    """A LightFrustum whose view is the rigid light basis and whose proj carries the warp.
+def local_light_view(basis: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """The rigid light basis moved so that ``origin`` maps to the light-view origin."""
+    view = basis.copy()
+    view[:3, 3] = -basis[:3, :3] @ origin
+    return view
+
+
+def frustum_from_clip(light_view: np.ndarray, clip: np.ndarray, res: int,
+                      origin: np.ndarray) -> LightFrustum:
+    """A LightFrustum whose view is the rigid light basis translated to ``origin`` (a local
+    origin near the camera) and whose proj carries the warp.
+
+    The GL passes run in float32: with an untranslated basis, a scene far from the world origin
+    (1e5 units) puts light-view coordinates of size 1e5 into proj, whose perspective rows then
+    subtract translations of that size and amplify the float32 rounding into texels. Relative
+    to a nearby origin, proj sees small coordinates and only the rigid view meets the large ones.
     ``texel_world`` is unused by the warped shading (it computes the texel size per pixel)."""
-    return LightFrustum(light_view, clip @ np.linalg.inv(light_view), False, 1.0 / res, 0.0, 0.0)
+    view = local_light_view(light_view, np.asarray(origin, dtype=np.float64))
+    return LightFrustum(view, clip @ np.linalg.inv(view), False, 1.0 / res, 0.0, 0.0)
 
 
 # --- light-space perspective (LiSPSM, GMNPR) -----------------------------------------------
@@ -300,7 +316,7 @@ def light_space_warp(setup: ViewSetup, res: int, choose_lambda) -> Warp:
                      [0, 0, -1, 0],
                      [0, 1, 0, 0]], dtype=np.float64)
     clip = cube_fit(warp @ to_p @ basis, receivers, body)
-    return Warp(frustum_from_clip(basis, clip, res), clip, theta, phi, lam, near, far)
+    return Warp(frustum_from_clip(basis, clip, res, setup.eye), clip, theta, phi, lam, near, far)
 
 
 # --- post-perspective space (PSM) -----------------------------------------------------------
@@ -362,7 +378,7 @@ def post_perspective_warp(setup: ViewSetup, res: int) -> PostPerspective:
                                [0, 0, -1, 0]], dtype=np.float64)
     clip = cube_fit(projection @ light_view @ camera, receivers, body)
     basis = light_basis(setup.light, setup.forward)
-    return PostPerspective(frustum_from_clip(basis, clip, res), clip, setup.theta, slide, kind)
+    return PostPerspective(frustum_from_clip(basis, clip, res, setup.eye), clip, setup.theta, slide, kind)
 
 
 # --- measurements ---------------------------------------------------------------------------

@@ -23,8 +23,6 @@ CASES = {
     "hard_spot_close",
 }
 RESOLUTION_LIMITED = {"hard_huge_depth_range", "hard_near_plane_crossing"}
-# measured and shown, not claimed: GMNPR's warp loses precision about 1e5 from the origin
-KNOWN_FAILURES = {("gmnpr", "hard_far_from_origin")}
 DIRECTIONAL_ONLY = {"psm", "lispsm", "gmnpr"}
 
 
@@ -67,15 +65,7 @@ def test_maps_are_right_where_they_resolve_the_scene(suite, technique):
     _, df = suite
     rows = df[(df.technique == technique) & (df.status == "ok")
               & ~df.scene.isin(RESOLUTION_LIMITED)]
-    rows = rows[[(technique, s) not in KNOWN_FAILURES for s in rows.scene]]
     assert len(rows) >= 9
     bad = rows[rows.wrong_pct >= 1.0]
     assert bad.empty, bad[["scene", "wrong_pct"]]
 
-
-def test_known_failure_is_still_measured(suite):
-    """If GMNPR's far-from-origin error goes away, move it out of KNOWN_FAILURES."""
-    _, df = suite
-    for technique, scene in KNOWN_FAILURES:
-        row = df[(df.technique == technique) & (df.scene == scene)].iloc[0]
-        assert row.status == "ok" and row.wrong_pct >= 1.0
