@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness import cli, report, results
+from harness import cli, registry, report, results
 from papers import claims
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -25,6 +25,7 @@ def _row(technique, scene="s", width=256, params=None, **values):
     run_id = f"{technique}-{scene}-{width}-{json.dumps(params, sort_keys=True)}"
     return {"run_id": run_id, "schema": 1, "scene": scene, "technique": technique,
             "params": params, "width": width, "height": width, "status": "ok",
+            "code_version": registry.get(technique).code_version(),
             "array": f"arrays/{scene}/{width}x{width}/{technique}-x.npz", **values}
 
 
@@ -142,3 +143,10 @@ def test_papers_json_schema_and_page(mdsm_run):
     assert sum(s.startswith(f"images/papers/claim-{fig6}/") for s in sources) == 10
     first = np.asarray(Image.open(mdsm_run / f"images/papers/claim-{fig6}/1.png"))
     assert first.shape[:2] == (256, 256)
+
+
+def test_rows_of_older_code_are_left_out(tmp_path):
+    current = _row("sm", params={"res": 512}, time_ms=1.0)
+    older = {**_row("sm", params={"res": 1024}, time_ms=2.0), "code_version": "0" * 12}
+    runs = _write(tmp_path, "x", [current, older])
+    assert list(runs.rows["time_ms"]) == [1.0]
