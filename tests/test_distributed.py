@@ -85,6 +85,8 @@ def test_killed_worker_the_sweep_completes(sweep, tmp_path):
 
 
 def test_killed_client_resumes_without_loss_or_duplicates(sweep, tmp_path):
+    # longer runs, so the kill lands while most of the sweep is still to do
+    sweep.write_text(sweep.read_text().replace("frames: 1", "frames: 12"))
     out = tmp_path / "dask"
     proc = subprocess.Popen([EXE, "run", str(sweep), "--out", str(out), "--executor", "dask",
                              "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
