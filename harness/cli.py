@@ -125,7 +125,8 @@ def cmd_reference(args) -> int:
 
     from .reference import compute_reference
     from .report import visibility_png
-    from .runner import _save_arrays, reference_array_path
+    from .results import save_arrays
+    from .runner import reference_array_path
     from .scene import load_scene
 
     try:
@@ -139,7 +140,7 @@ def cmd_reference(args) -> int:
     out = Path(args.out)
     path = out / reference_array_path(scene.name, scene.width, scene.height, args.samples, 0)
     extra = {"direct": ref.direct} if ref.direct is not None else {}
-    _save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
+    save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
     visibility_png(ref.visibility, ref.covered, path.with_suffix(".png"))
     print(f"{path} ({scene.width}x{scene.height}, {args.samples} samples, {ref.variant}, "
           f"{'cached' if ref.cached else f'{ref.seconds:.2f} s'}; covered "

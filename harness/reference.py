@@ -16,7 +16,6 @@ import hashlib
 import math
 import os
 import re
-import tempfile
 import time
 import warnings
 import zipfile
@@ -26,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import square_number
+from .results import save_arrays
 from .scene import BuiltScene
 
 CACHE_VERSION = 4  # bump when the reference's definition changes
@@ -262,13 +262,8 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     ref = Reference(visibility.astype(np.float32), covered, direct,
                     time.perf_counter() - start, variant)
     if use_cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # a name of its own: processes sharing the cache (Dask workers) may trace one scene
-        # at once, and each must replace the entry whole
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp.npz")
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, visibility=ref.visibility, covered=ref.covered,
-                                direct=direct if direct is not None else np.zeros(0, np.float32),
-                                seconds=ref.seconds, variant=variant)
-        os.replace(tmp, path)
+        # processes sharing the cache (Dask workers) may trace one scene at once
+        save_arrays(path, visibility=ref.visibility, covered=ref.covered,
+                    direct=direct if direct is not None else np.zeros(0, np.float32),
+                    seconds=ref.seconds, variant=variant)
     return ref

@@ -33,6 +33,21 @@ COLUMNS: dict[str, type] = {
 RESULTS_FILE = "results.csv"
 
 
+def save_arrays(path: str | Path, **arrays) -> None:
+    """Write an .npz whole or not at all: a temporary file of its own (processes sharing a
+    folder never collide), then a rename."""
+    import tempfile
+
+    import numpy as np
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp.npz")
+    with os.fdopen(fd, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    os.replace(tmp, path)
+
+
 def _cell(value) -> str:
     if value is None:
         return ""

@@ -282,13 +282,6 @@ def _now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def _save_arrays(path: Path, **arrays) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp.npz")
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, path)
-
-
 def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {' '.join(str(e).split())}"[:500]
 
@@ -478,11 +471,11 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
                                               spec.ref_seed)
     row["reference_array"] = str(ref_path.relative_to(out_dir))
     if not ref_path.is_file():
-        _save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
+        results.save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
                      **({"direct": reference.direct} if reference.direct is not None else {}))
     if arrays is not None:
         array = ref_path.relative_to(out_dir).with_name(f"{spec.technique}-{spec.run_id}.npz")
-        _save_arrays(out_dir / array, **arrays)
+        results.save_arrays(out_dir / array, **arrays)
         row["array"] = str(array)
     row["finished_at"] = _now()
     results.record_row(out_dir, row)

@@ -12,6 +12,15 @@ from harness.technique import Frame
 SHIPPED = ["sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long"]
 
 
+def gbuffer_arrays(scene):
+    """The GL side's G-buffer arrays of a scene (a Frame made and released)."""
+    frame = Frame(scene)
+    try:
+        return frame.arrays
+    finally:
+        frame.release()
+
+
 def all_scene_names():
     from harness import config
     from conftest import SCENE_FILE
@@ -22,11 +31,7 @@ def all_scene_names():
 @pytest.mark.parametrize("name", all_scene_names())
 def test_gl_and_mitsuba_coverage_agree(name, scene_at, gl_context):
     scene = scene_at(name, 160, 120)
-    frame = Frame(scene)
-    try:
-        gl_covered = frame.arrays.covered
-    finally:
-        frame.release()
+    gl_covered = gbuffer_arrays(scene).covered
     ref = compute_reference(scene, samples=4)
     agreement = (gl_covered == ref.covered).mean()
     assert agreement >= 0.999, f"{name}: {agreement:.5f}"
@@ -51,9 +56,7 @@ def _box_occludes(points, to_light, lo, hi):
 def test_reference_matches_an_independent_ray_caster(scene_at, gl_context):
     """box_plane: the box is the only occluder; its shadow on the plane by slab tests."""
     scene = scene_at("box_plane", 192)
-    frame = Frame(scene)
-    arrays = frame.arrays
-    frame.release()
+    arrays = gbuffer_arrays(scene)
     ref = compute_reference(scene, samples=16)
     on_plane = arrays.covered & ref.covered & (np.abs(arrays.position[..., 2]) < 1e-4)
     to_light = np.broadcast_to(-scene.light.direction, arrays.position.shape)
@@ -89,9 +92,7 @@ def test_direct_image_is_lambert_times_visibility(scene_at, gl_context):
     from harness import metrics
 
     scene = scene_at("sphere_plane", 96)
-    frame = Frame(scene)
-    a = frame.arrays
-    frame.release()
+    a = gbuffer_arrays(scene)
     ref = compute_reference(scene, samples=16)
     shaded = metrics.shade(ref.visibility, a.normal, a.position, a.albedo, scene.light,
                            ambient=0.0)[..., 0]
