@@ -53,7 +53,8 @@ class ShadowVolumes(Technique):
     robust by Everitt and Kilgard (2002). Volumes are extruded to infinity (w = 0); z-fail
     draws them with depth clamping (one of Everitt and Kilgard's two ways; their infinite far
     plane would give depths other than the G-buffer's), so what lies beyond the far plane
-    counts at the far plane's depth instead of being clipped.
+    counts at the far plane's depth instead of being clipped, and with a one-unit polygon
+    offset, so a near cap never lands in front of the surface it copies.
 
     The count lives in the ``stencil`` buffer (two-sided, wrapping increment/decrement: counts
     modulo 256), or, without a stencil buffer (Roettger et al. 2002), in the ``alpha`` channel
@@ -68,9 +69,9 @@ class ShadowVolumes(Technique):
     rectangle (section 4.4); its counter holds several entries per ray (1, 1/2, 1/4 ...), so,
     as with the stencil, ``auto`` makes every closed mesh one silhouette volume. Its depth
     limit is 7 entries in the 8-bit channel on llvmpipe (each blend product is rounded, so
-    halving stops at 2/255 after 7 halvings; round-to-nearest of the sum would allow 8): a
-    count that reaches 8 or more on the way (faces are drawn volume by volume, increments
-    first) ends that many entries too low, and a pixel still inside a volume can read as lit.
+    halving stops at 2/255 after 7 halvings; rounding their sum once would allow 8): entries
+    beyond 7 are lost, so a count that reaches 8 or more on the way (faces are drawn volume by
+    volume, increments first) ends too low, and a pixel still inside a volume can read as lit.
     ``mask_res: half`` or ``quarter`` computes the mask at 1/2 or 1/4 of the image's
     resolution along each axis and magnifies it bilinearly (section 4.5; the paper's "quarter
     of the screen size" took 10.2 to 23.6 Hz at 1024^2, beyond its half-resolution 15.7 Hz,
@@ -226,7 +227,8 @@ class ShadowVolumes(Technique):
         self._zfail_depth(True)
         # z-fail counts the faces behind the surface: stencil has a depth-fail operation,
         # blending only sees passing fragments, so there the test is reversed. Either way a
-        # face at equal depth counts (a near cap on its own surface).
+        # face at equal depth counts as behind (and z-fail's offset puts a near cap behind
+        # its own surface).
         reversed_test = p.method == "zfail" and p.buffer != "stencil"
         GL.glDepthFunc(GL.GL_GEQUAL if reversed_test else GL.GL_LESS)
         program = self.volume_program.use().set(view_proj=self.view_proj)

@@ -10,7 +10,8 @@ Two kinds of volume:
   extruded; the light-facing faces are the near cap and the light-averted faces pushed to
   infinity the far cap (degenerate, so left out, for a directional light);
 - polygon: one per triangle (a truncated pyramid), for meshes that are not closed, and for
-  the alpha and screen buffers wherever a silhouette volume could be entered twice by a ray.
+  the alpha and screen buffers normalised by rectangles wherever a silhouette volume could be
+  entered twice by a ray.
 
 Either way a volume's count is the sum of the per-triangle volumes of its light-facing
 triangles (the casters): the side quads between two light-facing triangles cancel. The casters
