@@ -137,6 +137,20 @@ class Frame:
                     gbuffer_normal=self.gbuffer.normal_texture.bind(first_unit + 1))
         return first_unit + 2
 
+    def share_scene_depth(self, target: Framebuffer) -> None:
+        """Attach the G-buffer's depth-stencil to ``target`` (a framebuffer of the frame's size
+        made with ``depth=False``), so a technique depth-tests against the camera pass, the
+        scene pass every technique gets, instead of drawing the scene again. That depth was
+        written with ``camera.view_proj`` by ``gbuffer.vert.glsl``; a technique may use the
+        stencil bits but must not write depth. ``target.release()`` leaves it alone."""
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, target.id)
+        GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT,
+                                  GL.GL_TEXTURE_2D, self.gbuffer.depth_texture.id, 0)
+        status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        if status != GL.GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"framebuffer with the scene's depth incomplete: 0x{status:x}")
+
     def begin_visibility(self) -> None:
         """Bind the visibility target (cleared to lit) for a full-screen pass writing V."""
         self.visibility_target.clear((1, 1, 1, 1))

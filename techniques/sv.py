@@ -13,20 +13,11 @@ from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from . import sv_volumes
 
-# Everitt and Kilgard's epsilon: points at infinity (w = 0) land just inside the far plane.
-INFINITE_FAR_EPSILON = 2.0 ** -20
 # Mask channel and the level between shadow and lit that the normalised mask is snapped at.
 CHANNEL = {"stencil": 0, "alpha": 3, "screen": 0}
 COLOUR_MASK = {"alpha": (False, False, False, True), "screen": (True, True, True, False)}
-
-
-def infinite_far(proj: np.ndarray, epsilon: float = INFINITE_FAR_EPSILON) -> np.ndarray:
-    """The camera's perspective projection with its far plane moved to infinity."""
-    p = np.array(proj, dtype=np.float64)
-    near = p[2, 3] / (p[2, 2] - 1.0)
-    p[2, 2] = epsilon - 1.0
-    p[2, 3] = near * (epsilon - 2.0)
-    return p
+# mask_res -> image pixels along each axis per mask texel
+MASK_DIVISOR = {"full": 1, "half": 2, "quarter": 4}
 
 
 def count_fragments(draw) -> int:
@@ -43,23 +34,48 @@ def count_fragments(draw) -> int:
 class ShadowVolumes(Technique):
     """Per-pixel exact hard shadows: count the shadow-volume faces along each camera ray.
 
-    Volumes are extruded to infinity (w = 0) and drawn with an infinite-far projection, so no
-    volume is clipped at the far plane. ``zpass`` counts the faces in front of the visible
-    surface and is wrong when the camera sits inside a volume; ``zfail`` (Carmack's reverse)
-    counts those behind it and closes each volume with caps, so it is right there too.
+    As in Roettger et al., the scene is drawn first and the volumes are depth-tested against
+    its depth: here that first pass is the G-buffer's, the scene pass every technique gets, so
+    a full-resolution mask draws the scene no second time. A smaller mask needs the scene's
+    depth at its own resolution, one more scene pass (section 4.5), and the screen buffer draws
+    the scene again after the mask (timed as ``scene_redraw``). ``scene_passes`` counts a
+    frame's scene passes, the G-buffer's included: stencil 1, alpha 1, screen 2 (Table 1),
+    and 2 with a smaller mask.
 
-    The count lives in the ``stencil`` buffer (two-sided, wrapping increment/decrement), or,
-    without a stencil buffer (Roettger et al. 2002), in the ``alpha`` channel or the RGB of the
-    ``screen`` buffer as a blending state machine: start at 1/4, the faces that enter a volume
-    double, those that leave halve, so a lit pixel ends at 1/4 and a shadowed one at 1/2 or 1.
-    ``normalize: rectangles`` turns that into 0/1 with three full-window rectangles (double,
-    invert, double; section 4.3); ``normalize: max`` starts at 1 with halve/double swapped and
-    lifts everything to at least 1/2 with one max-blended rectangle (section 4.4). The state
-    machine is right only for volumes a ray enters at most once, each drawn front faces before
-    back faces (section 4.2): one silhouette volume per convex closed mesh, one volume per
-    triangle otherwise (``volumes: auto``). The screen buffer needs the scene drawn again after
-    the mask (timed as ``scene_redraw``). ``mask_res: half`` computes the mask from a half-
-    resolution depth pass and magnifies it bilinearly (section 4.5).
+    ``method``: ``zpass`` counts the faces between the near plane and the visible surface
+    (section 3.2) and is wrong wherever the near plane lies inside a volume (the camera in a
+    shadow). ``nearclip`` is the paper's fix for that (section 3.2): every volume is clipped
+    at the near plane and the clip polygon drawn as a front face (computed per light-facing
+    triangle in double precision, ``sv_volumes.near_clip_polygons``). ``zfail`` counts the
+    faces behind the surface instead and closes each volume with a near cap (the light-facing
+    triangles) and, for a spot light, a far cap (the others pushed to infinity), so it is right
+    wherever the camera is; it is later work, not the paper's: Carmack's reverse (2000), made
+    robust by Everitt and Kilgard (2002). Volumes are extruded to infinity (w = 0); z-fail
+    draws them with depth clamping (one of Everitt and Kilgard's two ways; their infinite far
+    plane would give depths other than the G-buffer's), so what lies beyond the far plane
+    counts at the far plane's depth instead of being clipped, and with a one-unit polygon
+    offset, so a near cap never lands in front of the surface it copies.
+
+    The count lives in the ``stencil`` buffer (two-sided, wrapping increment/decrement: counts
+    modulo 256), or, without a stencil buffer (Roettger et al. 2002), in the ``alpha`` channel
+    or the RGB of the ``screen`` buffer as a blending state machine: start at 1/4, the faces
+    that enter a volume double, those that leave halve, so a lit pixel ends at 1/4 and a
+    shadowed one at 1/2 or 1. ``normalize: rectangles`` turns that into 0/1 with three
+    full-window rectangles (double, invert, double; section 4.3); the state machine tells 0
+    from "at least 1" only, so it is right only for volumes a ray enters at most once, each
+    drawn front faces before back faces (section 4.2): one silhouette volume per convex closed
+    mesh, one volume per triangle otherwise (``volumes: auto``). ``normalize: max`` starts at 1
+    with halve/double swapped and lifts everything to at least 1/2 with one max-blended
+    rectangle (section 4.4); its counter holds several entries per ray (1, 1/2, 1/4 ...), so,
+    as with the stencil, ``auto`` makes every closed mesh one silhouette volume. Its depth
+    limit is 7 entries in the 8-bit channel on llvmpipe (each blend product is rounded, so
+    halving stops at 2/255 after 7 halvings; rounding their sum once would allow 8): entries
+    beyond 7 are lost, so a count that reaches 8 or more on the way (faces are drawn volume by
+    volume, increments first) ends too low, and a pixel still inside a volume can read as lit.
+    ``mask_res: half`` or ``quarter`` computes the mask at 1/2 or 1/4 of the image's
+    resolution along each axis and magnifies it bilinearly (section 4.5; the paper's "quarter
+    of the screen size" took 10.2 to 23.6 Hz at 1024^2, beyond its half-resolution 15.7 Hz,
+    so a quarter along each axis).
 
     Volume fragments are counted once, untimed, with the depth test off: they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
@@ -69,8 +85,10 @@ class ShadowVolumes(Technique):
     ===============  =====================================================  ==========  =====
     ``buffer``       where the count lives: ``stencil``, ``alpha``,         stencil
                      ``screen``
-    ``method``       ``zpass`` or ``zfail`` (capped, camera may be inside)  zfail
-    ``mask_res``     ``full`` or ``half`` (bilinear magnification)          full
+    ``method``       ``zpass``, ``nearclip`` (z-pass with near-plane clip   zfail
+                     polygons) or ``zfail`` (capped)
+    ``mask_res``     ``full``, ``half`` or ``quarter`` (bilinear            full
+                     magnification)
     ``normalize``    alpha/screen: ``rectangles`` (3, section 4.3) or       rectangles
                      ``max`` (1, section 4.4)
     ``volumes``      ``auto``, ``silhouette`` (one per closed mesh, even    auto
@@ -79,52 +97,81 @@ class ShadowVolumes(Technique):
     """
 
     name = "sv"
-    summary = "shadow volumes: stencil, alpha or screen buffer; z-pass or z-fail; half-res mask"
+    summary = ("shadow volumes: stencil, alpha or screen buffer; z-pass, near-plane clipped or "
+               "z-fail; half- or quarter-res mask")
     paper = ("Crow 1977, Shadow algorithms for computer graphics; Roettger, Irion, Ertl 2002, "
              "Shadow volumes revisited")
 
     class Params(TechniqueParams):
         buffer: Literal["stencil", "alpha", "screen"] = "stencil"
-        method: Literal["zpass", "zfail"] = "zfail"
-        mask_res: Literal["full", "half"] = "full"
+        method: Literal["zpass", "zfail", "nearclip"] = "zfail"
+        mask_res: Literal["full", "half", "quarter"] = "full"
         normalize: Literal["rectangles", "max"] = "rectangles"
         volumes: Literal["auto", "silhouette", "polygon"] = "auto"
 
     def prepare(self, frame: Frame) -> None:
         p = self.params
-        self.view_proj = infinite_far(frame.camera.proj) @ frame.camera.view
-        zfail = p.method == "zfail"
-        stencil = p.buffer == "stencil"
-        volumes = sv_volumes.build(frame.scene.parts, frame.scene.light, caps=zfail,
-                                   one_pass_count=stencil, grouping=p.volumes)
+        self.view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
+        self.front_increments = p.method != "zfail"
+        volumes = sv_volumes.build(frame.scene.parts, frame.scene.light, caps=p.method == "zfail",
+                                   nested_counts=p.buffer == "stencil" or p.normalize == "max",
+                                   grouping=p.volumes)
         self.volume_set = volumes
         self.warnings = list(volumes.warnings)
-        self.front_increments = not zfail
-        triangles = (volumes.triangles if stencil else
-                     sv_volumes.draw_order(volumes, self.view_proj, self.front_increments))
-        self.volumes = VertexArray(triangles.reshape(-1, 4), (4,))
-        half = p.mask_res == "half"
-        self.mask = Framebuffer((frame.width + 1) // 2 if half else frame.width,
-                                (frame.height + 1) // 2 if half else frame.height,
-                                (GL.GL_RGBA8,), depth=True)
-        self.depth_program = self.shader(__file__, "sv_volume.vert.glsl", "sv_fill.frag.glsl")
+        vertices, near_clip_triangles = self._vertices(frame)
+        self.volumes = VertexArray(vertices, (4, 1))
+        divisor = MASK_DIVISOR[p.mask_res]
+        self.shares_scene_depth = divisor == 1
+        self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
+                                (GL.GL_RGBA8,), depth=not self.shares_scene_depth)
+        if self.shares_scene_depth:
+            frame.share_scene_depth(self.mask)
+        self.scene_program = self.shader(__file__, "gbuffer.vert.glsl", "sv_fill.frag.glsl")
         self.volume_program = self.shader(__file__, "sv_volume.vert.glsl", "sv_volume.frag.glsl")
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "sv_visibility.frag.glsl")
-        self.fill = self._count_fill(frame)
+        redraw = p.buffer == "screen" and self.shares_scene_depth
+        self.fill = self._count_fill()
+        self.fill.update(near_clip_triangles=near_clip_triangles,
+                         scene_passes=1 + (not self.shares_scene_depth) + redraw)
+
+    def _vertices(self, frame: Frame) -> tuple[np.ndarray, int]:
+        """Volume vertices (N, 5): homogeneous world position and 0, or a near-plane clip
+        polygon's normalised device x, y, 0, 1 and 1; triangles in the state machine's order
+        for alpha and screen. And the number of clip-polygon triangles."""
+        volumes = self.volume_set
+        triangles = volumes.triangles.astype(np.float64)
+        owner = volumes.volume_of
+        increments = (sv_volumes.camera_facing(triangles, self.view_proj)
+                      == self.front_increments)
+        rows = np.concatenate([triangles, np.zeros(triangles.shape[:2] + (1,))], axis=2)
+        near = np.zeros((0, 3, 2))
+        if self.params.method == "nearclip":
+            near, near_owner = sv_volumes.near_clip_polygons(volumes, frame.scene.light,
+                                                             self.view_proj)
+            near_rows = np.zeros(near.shape[:2] + (5,))
+            near_rows[..., :2], near_rows[..., 3:] = near, 1.0
+            rows = np.concatenate([rows, near_rows])
+            owner = np.concatenate([owner, near_owner])
+            increments = np.concatenate([increments, np.ones(len(near), bool)])  # front faces
+        if self.params.buffer != "stencil":
+            rows = rows[sv_volumes.draw_order(owner, increments)]
+        return rows.reshape(-1, 5), len(near)
 
     # ---- untimed fill-rate counts -------------------------------------------------------
 
-    def _count_fill(self, frame: Frame) -> dict:
+    def _count_fill(self) -> dict:
+        self.mask.bind()
         GL.glColorMask(False, False, False, False)
         GL.glDisable(GL.GL_STENCIL_TEST)
         GL.glDisable(GL.GL_BLEND)
         GL.glDisable(GL.GL_CULL_FACE)
-        self.mask.clear((0, 0, 0, 0))
         GL.glDisable(GL.GL_DEPTH_TEST)
+        self._zfail_depth(True)
         self.volume_program.use().set(view_proj=self.view_proj)
         volume_frags = count_fragments(self.volumes.draw)
+        self._zfail_depth(False)
         GL.glColorMask(True, True, True, True)
         triangles = len(self.volume_set.triangles)
         return {"volume_frags": volume_frags,
@@ -140,8 +187,28 @@ class ShadowVolumes(Technique):
             return 1.0
         return 0.25
 
-    def _depth_pass(self, frame: Frame) -> None:
+    def _zfail_depth(self, on: bool) -> None:
+        """z-fail's depth state. Clamping: volume parts beyond the far plane count at its depth
+        instead of being clipped. A polygon offset of one unit: clamped depths round other
+        than the G-buffer's unclamped ones (llvmpipe: by up to 2^-23), and a near cap must
+        never land in front of the surface it copies."""
+        if on and self.params.method == "zfail":
+            GL.glEnable(GL.GL_DEPTH_CLAMP)
+            GL.glEnable(GL.GL_POLYGON_OFFSET_FILL)
+            GL.glPolygonOffset(0.0, 1.0)
+        else:
+            GL.glDisable(GL.GL_DEPTH_CLAMP)
+            GL.glDisable(GL.GL_POLYGON_OFFSET_FILL)
+
+    def _clear_mask(self) -> None:
+        """The start value in the mask, count 0 in the stencil; a shared depth stays, a mask's
+        own depth is cleared too."""
         self.mask.clear((self._start_value(),) * 4)
+        GL.glStencilMask(0xFF)
+        GL.glClearBufferiv(GL.GL_STENCIL, 0, np.zeros(1, np.int32))
+
+    def _depth_pass(self, frame: Frame) -> None:
+        """A smaller mask's own scene pass: the scene's depth at the mask's resolution."""
         GL.glDisable(GL.GL_BLEND)
         GL.glDisable(GL.GL_STENCIL_TEST)
         GL.glDisable(GL.GL_CULL_FACE)
@@ -149,15 +216,19 @@ class ShadowVolumes(Technique):
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDepthMask(True)
         GL.glColorMask(False, False, False, False)
-        self.depth_program.use().set(view_proj=self.view_proj)
+        self.scene_program.use().set(view_proj=self.view_proj)
         frame.draw_scene()
 
     def _volume_pass(self) -> None:
         p = self.params
+        GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(False)
+        GL.glDisable(GL.GL_CULL_FACE)
+        self._zfail_depth(True)
         # z-fail counts the faces behind the surface: stencil has a depth-fail operation,
         # blending only sees passing fragments, so there the test is reversed. Either way a
-        # face at equal depth counts (a near cap on its own surface).
+        # face at equal depth counts as behind (and z-fail's offset puts a near cap behind
+        # its own surface).
         reversed_test = p.method == "zfail" and p.buffer != "stencil"
         GL.glDepthFunc(GL.GL_GEQUAL if reversed_test else GL.GL_LESS)
         program = self.volume_program.use().set(view_proj=self.view_proj)
@@ -167,7 +238,7 @@ class ShadowVolumes(Technique):
             GL.glStencilMask(0xFF)
             GL.glStencilFunc(GL.GL_ALWAYS, 0, 0xFF)
             keep, incr, decr = GL.GL_KEEP, GL.GL_INCR_WRAP, GL.GL_DECR_WRAP
-            if p.method == "zpass":
+            if p.method != "zfail":
                 GL.glStencilOpSeparate(GL.GL_FRONT, keep, keep, incr)
                 GL.glStencilOpSeparate(GL.GL_BACK, keep, keep, decr)
             else:
@@ -183,6 +254,7 @@ class ShadowVolumes(Technique):
             program.set(front_increments=self.front_increments, increment_colour=increment,
                         decrement_colour=decrement)
         self.volumes.draw()
+        self._zfail_depth(False)
 
     def _rectangle(self, frame: Frame, colour: float) -> None:
         self.fill_program.use().set(fill_colour=(colour,) * 4)
@@ -225,7 +297,7 @@ class ShadowVolumes(Technique):
         GL.glColorMask(*COLOUR_MASK["screen"])
         GL.glEnable(GL.GL_BLEND)
         GL.glBlendFunc(GL.GL_DST_COLOR, GL.GL_ZERO)
-        self.depth_program.use().set(view_proj=self.view_proj, fill_colour=(1.0,) * 4)
+        self.scene_program.use().set(view_proj=self.view_proj, fill_colour=(1.0,) * 4)
         frame.draw_scene()
         GL.glDisable(GL.GL_BLEND)
         GL.glDepthFunc(GL.GL_LESS)
@@ -238,30 +310,33 @@ class ShadowVolumes(Technique):
         p = self.params
         lit_threshold = 0.75 if p.buffer != "stencil" and p.normalize == "max" else 0.5
         program.set(shadow_mask=self.mask.colors[0].bind(unit), mask_channel=CHANNEL[p.buffer],
-                    lit_threshold=lit_threshold, magnify=p.mask_res == "half")
+                    lit_threshold=lit_threshold, magnify=p.mask_res != "full")
         frame.draw_fullscreen()
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
-        with frame.measure("depth"):
-            self.mask.bind()
-            self._depth_pass(frame)
+        if not self.shares_scene_depth:
+            with frame.measure("depth"):
+                self._clear_mask()
+                self._depth_pass(frame)
         with frame.measure("volumes"):
+            if self.shares_scene_depth:
+                self._clear_mask()
             self._volume_pass()
         with frame.measure("stencil_mask" if p.buffer == "stencil" else "normalize"):
             self._normalize_pass(frame)
-        if p.buffer == "screen" and p.mask_res == "full":
+        if p.buffer == "screen" and self.shares_scene_depth:
             with frame.measure("scene_redraw"):
                 self._scene_redraw_pass(frame)
         with frame.measure("visibility"):
             self._visibility_pass(frame)
         fill = dict(self.fill)
         return frame.output(mem_bytes=self.mask.nbytes,
-                            fetches_per_px=4 if p.mask_res == "half" else 1,
+                            fetches_per_px=1 if self.shares_scene_depth else 4,
                             shadow_fragments=fill.pop("volume_frags"), extra=fill,
                             warnings=self.warnings)
 
     def release(self) -> None:
-        for resource in (self.volumes, self.mask, self.depth_program, self.volume_program,
+        for resource in (self.volumes, self.mask, self.scene_program, self.volume_program,
                          self.fill_program, self.visibility_program):
             resource.release()

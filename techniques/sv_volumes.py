@@ -10,7 +10,12 @@ Two kinds of volume:
   extruded; the light-facing faces are the near cap and the light-averted faces pushed to
   infinity the far cap (degenerate, so left out, for a directional light);
 - polygon: one per triangle (a truncated pyramid), for meshes that are not closed, and for
-  the alpha and screen buffers wherever a silhouette volume could be entered twice by a ray.
+  the alpha and screen buffers normalised by rectangles wherever a silhouette volume could be
+  entered twice by a ray.
+
+Either way a volume's count is the sum of the per-triangle volumes of its light-facing
+triangles (the casters): the side quads between two light-facing triangles cancel. The casters
+give the volume's cross-section with the camera's near plane (:func:`near_clip_polygons`).
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ import trimesh
 
 from harness.scene import Light, MeshPart
 
-# Relative size below which a triangle is taken as zero-area or as edge-on to the light.
+# Below this a triangle is taken as zero-area (twice its area over the squared extent of its
+# mesh) or as edge-on to the light (the cosine between its normal and the direction to the
+# light): both relative, so the same triangle is judged the same anywhere in the scene.
 DEGENERATE = 1e-12
 
 
@@ -46,6 +53,8 @@ class VolumeSet:
     volume_count: int
     silhouette_edges: int
     warnings: list[str]
+    casters: np.ndarray  # (C, 3, 3) float64 light-facing triangles, counter-clockwise seen from it
+    caster_volume: np.ndarray  # (C,) the volume each caster belongs to
 
 
 def clean(part: MeshPart) -> CleanMesh:
@@ -74,11 +83,12 @@ def clean(part: MeshPart) -> CleanMesh:
 
 
 def _light_facing(tri: np.ndarray, light: Light) -> np.ndarray:
-    """Signed (unnormalised) facing of each triangle toward the light: > 0 faces it."""
+    """Cosine between each triangle's normal and the direction to the light: > 0 faces it."""
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     to_light = (-light.direction[None, :] if light.type == "directional"
                 else light.position[None, :] - tri[:, 0])
-    return np.einsum("ij,ij->i", n, to_light)
+    lengths = np.linalg.norm(n, axis=1) * np.linalg.norm(to_light, axis=1)
+    return np.einsum("ij,ij->i", n, to_light) / np.maximum(lengths, 1e-300)
 
 
 def _at_infinity(points: np.ndarray, light: Light) -> np.ndarray:
@@ -115,7 +125,8 @@ def winding_number(mesh: CleanMesh, point: np.ndarray) -> float:
 
 
 def silhouette_volume(mesh: CleanMesh, light: Light, *, caps: bool):
-    """One volume for a closed mesh: (triangles (T, 3, 4), number of silhouette edges)."""
+    """One volume for a closed mesh: (triangles (T, 3, 4), number of silhouette edges, its
+    light-facing triangles)."""
     v, f = mesh.vertices, mesh.faces
     lit = _light_facing(v[f], light) > 0
     n = len(v)
@@ -131,15 +142,15 @@ def silhouette_volume(mesh: CleanMesh, light: Light, *, caps: bool):
         parts.append(_finite(v[f[lit]]))
         if light.type != "directional":
             parts.append(_at_infinity(v[f[~lit]], light))
-    return np.concatenate(parts), int(silhouette.sum())
+    return np.concatenate(parts), int(silhouette.sum()), v[f[lit]]
 
 
 def polygon_volumes(mesh: CleanMesh, light: Light, *, caps: bool):
-    """One volume per triangle not edge-on to the light: (triangles, volume index of each)."""
+    """One volume per triangle not edge-on to the light: (triangles, volume index of each,
+    number of volumes, the triangles turned toward the light)."""
     tri = mesh.vertices[mesh.faces]
     facing = _light_facing(tri, light)
-    scale = max(float(np.abs(tri).max()), 1e-30)
-    keep = np.abs(facing) > DEGENERATE * scale ** 3
+    keep = np.abs(facing) > DEGENERATE
     tri = tri[keep]
     # orient every triangle toward the light, keeping the first vertex in place
     away = facing[keep] < 0
@@ -156,19 +167,21 @@ def polygon_volumes(mesh: CleanMesh, light: Light, *, caps: bool):
         if light.type != "directional":
             pieces.append(_at_infinity(tri[:, ::-1], light))
             owners.append(np.arange(count))
-    return np.concatenate(pieces), np.concatenate(owners), count
+    return np.concatenate(pieces), np.concatenate(owners), count, tri
 
 
-def build(parts: list[MeshPart], light: Light, *, caps: bool, one_pass_count: bool,
+def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: bool,
           grouping: str) -> VolumeSet:
     """All volumes of a scene.
 
-    ``one_pass_count``: the buffer counts with a full integer (stencil), so any closed mesh may
-    be one silhouette volume; otherwise (the alpha/screen state machine) only convex ones may,
-    unless ``grouping`` is ``silhouette``, which forces it (to show the saturation error).
-    ``grouping`` ``polygon`` makes every triangle its own volume.
+    ``nested_counts``: the counter holds several entries per ray (the stencil's integer, or
+    the max normalisation's 1, 1/2, 1/4 ...), so any closed mesh may be one silhouette volume;
+    otherwise (the alpha/screen state machine normalised by rectangles, which tells 0 from
+    "at least 1" only) only convex ones may, unless ``grouping`` is ``silhouette``, which
+    forces it (to show the saturation error). ``grouping`` ``polygon`` makes every triangle its
+    own volume.
     """
-    triangles, owners, warnings = [], [], []
+    triangles, owners, casters, caster_volume, warnings = [], [], [], [], []
     volumes = edges = 0
     for part in parts:
         mesh = clean(part)
@@ -180,20 +193,24 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, one_pass_count: bo
                 and abs(winding_number(mesh, light.position)) > 0.5):
             notes.append("the light is inside this closed mesh: all outside it is shadowed")
         single = mesh.closed and grouping != "polygon" and (
-            grouping == "silhouette" or one_pass_count or mesh.convex)
+            grouping == "silhouette" or nested_counts or mesh.convex)
         if single:
-            if not (one_pass_count or mesh.convex):
+            if not (nested_counts or mesh.convex):
                 notes.append("non-convex mesh drawn as one volume: a ray may enter it twice "
                              "and saturate the alpha/screen state machine")
-            tri, n_edges = silhouette_volume(mesh, light, caps=caps)
+            tri, n_edges, lit = silhouette_volume(mesh, light, caps=caps)
             triangles.append(tri)
             owners.append(np.full(len(tri), volumes))
+            casters.append(lit)
+            caster_volume.append(np.full(len(lit), volumes))
             volumes += 1
             edges += n_edges
         else:
-            tri, owner, count = polygon_volumes(mesh, light, caps=caps)
+            tri, owner, count, lit = polygon_volumes(mesh, light, caps=caps)
             triangles.append(tri)
             owners.append(owner + volumes)
+            casters.append(lit)
+            caster_volume.append(np.arange(count) + volumes)
             volumes += count
             if not mesh.closed:
                 notes.append(f"not closed (open or non-manifold edges): {count} per-triangle "
@@ -202,7 +219,9 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, one_pass_count: bo
             warnings.append(f"{part.name}: " + "; ".join(notes))
     tri = np.concatenate(triangles) if triangles else np.zeros((0, 3, 4))
     owner = np.concatenate(owners) if owners else np.zeros(0, np.int64)
-    return VolumeSet(tri.astype(np.float32), owner, volumes, edges, warnings)
+    lit = np.concatenate(casters) if casters else np.zeros((0, 3, 3))
+    lit_owner = np.concatenate(caster_volume) if caster_volume else np.zeros(0, np.int64)
+    return VolumeSet(tri.astype(np.float32), owner, volumes, edges, warnings, lit, lit_owner)
 
 
 def camera_facing(triangles: np.ndarray, view_proj: np.ndarray) -> np.ndarray:
@@ -214,9 +233,73 @@ def camera_facing(triangles: np.ndarray, view_proj: np.ndarray) -> np.ndarray:
     return np.linalg.det(clip[:, :, [0, 1, 3]]) > 0
 
 
-def draw_order(volumes: VolumeSet, view_proj: np.ndarray, front_increments: bool) -> np.ndarray:
-    """Triangles sorted volume by volume, the faces that increment the count first: the order
-    the alpha/screen state machine needs (Roettger et al. section 4.2). Stencil ignores it."""
-    increments = camera_facing(volumes.triangles, view_proj) == front_increments
-    order = np.lexsort((~increments, volumes.volume_of))
-    return volumes.triangles[order]
+def draw_order(volume_of: np.ndarray, increments: np.ndarray) -> np.ndarray:
+    """The order that draws triangles volume by volume, the faces that increment the count
+    first: what the alpha/screen state machine needs (Roettger et al. section 4.2). Stencil
+    ignores it."""
+    return np.lexsort((~increments, volume_of))
+
+
+def _volume_planes(casters: np.ndarray, light: Light) -> np.ndarray:
+    """The four planes (a, b, c, d) bounding each caster's volume, positive inside: behind the
+    caster (away from the light) and within the three sides through its edges. (C, 4, 4)."""
+    a, b, c = casters[:, 0], casters[:, 1], casters[:, 2]
+    normal = np.cross(b - a, c - a)  # toward the light
+    planes = [np.concatenate([-normal, np.einsum("ij,ij->i", normal, a)[:, None]], axis=1)]
+    for p, q, r in ((a, b, c), (b, c, a), (c, a, b)):
+        along = (np.broadcast_to(light.direction, p.shape) if light.type == "directional"
+                 else p - light.position)
+        m = np.cross(q - p, along)
+        m *= np.sign(np.einsum("ij,ij->i", m, r - p))[:, None]
+        planes.append(np.concatenate([m, -np.einsum("ij,ij->i", m, p)[:, None]], axis=1))
+    return np.stack(planes, axis=1)
+
+
+# The near rectangle in normalised device coordinates, counter-clockwise, a little larger than
+# the viewport so that rounding never leaves its border pixels out.
+NEAR_RECTANGLE = 1.001 * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+def _clip(polygon: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Sutherland-Hodgman: a convex polygon (N, 2) cut by half-planes A x + B y + C >= 0."""
+    for line in lines:
+        if len(polygon) == 0:
+            break
+        side = polygon @ line[:2] + line[2]
+        following = np.roll(polygon, -1, axis=0)
+        side_following = np.roll(side, -1)
+        kept = []
+        for point, nxt, s, s_next in zip(polygon, following, side, side_following):
+            if s >= 0:
+                kept.append(point)
+            if (s >= 0) != (s_next >= 0):
+                kept.append(point + (nxt - point) * (s / (s - s_next)))
+        polygon = np.array(kept).reshape(-1, 2)
+    return polygon
+
+
+def near_clip_polygons(volumes: VolumeSet, light: Light,
+                       view_proj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each volume clipped at the camera's near plane (Roettger et al. section 3.2): where the
+    near plane lies inside a volume, the clip polygon, as counter-clockwise triangles of
+    normalised device x, y (K, 3, 2) with the volume of each (K,).
+
+    Done per caster (its volume is convex, the intersection of four half-spaces) in double
+    precision: on the near plane (z_ndc = -1) a plane p . X >= 0 is the line
+    (p . inverse(view_proj)) . (x, y, -1, 1) >= 0. A non-convex volume's clip polygon is the
+    union of its casters' pieces, with the nesting its count has."""
+    if not len(volumes.casters):
+        return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
+    planes = _volume_planes(volumes.casters, light) @ np.linalg.inv(view_proj)
+    lines = np.stack([planes[..., 0], planes[..., 1], planes[..., 3] - planes[..., 2]], axis=-1)
+    corner_sides = lines[..., :2] @ NEAR_RECTANGLE.T + lines[..., 2:]  # (C, 4 lines, 4 corners)
+    reaches = ~(corner_sides < 0).all(axis=2).any(axis=1)
+    triangles, owners = [], []
+    for caster in np.flatnonzero(reaches):
+        polygon = _clip(NEAR_RECTANGLE, lines[caster])
+        for k in range(1, len(polygon) - 1):
+            triangles.append(polygon[[0, k, k + 1]])
+            owners.append(volumes.caster_volume[caster])
+    if not triangles:
+        return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
+    return np.array(triangles), np.array(owners)
