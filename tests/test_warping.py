@@ -189,7 +189,7 @@ def to_clip(clip, points):
 def test_random_configurations_matrix_properties(case):
     setup, seed = case
     points = visible_samples(setup, seed)
-    for choose in (W.lambda_lispsm, W.lambda_gmnpr):
+    for choose in (W.lispsm_eye_distance, W.gmnpr_eye_distance):
         warp = W.light_space_warp(setup, 256, choose)
         assert metrics.nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
         assert 0 < warp.lam <= W.LAMBDA_MAX
