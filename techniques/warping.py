@@ -11,8 +11,7 @@ Perspective Shadow Maps") and its analytic aliasing F (equation 2).
 n and f, the view depths of the formulas, are the nearest and farthest view depth of the
 visible receivers (the covered G-buffer pixels): the papers' body B is what the camera sees, and
 the view frustum clipped to the scene bounds can start at the near plane and end far behind the
-last visible surface. Without a G-buffer (``ViewSetup.visible`` None) the clipped frustum's range
-stands in.
+last visible surface. Where no receiver is visible the clipped frustum's range stands in.
 
 A spot light is warped in its own post-projective space (its clip space, where its rays are
 parallel and it is a directional light travelling along +z), as Wimmer et al.'s reference code
@@ -135,7 +134,7 @@ class ViewSetup:
     near: float
     far: float
     bounds: np.ndarray
-    visible: np.ndarray | None = None  # world positions of the visible receivers, (N, 3)
+    visible: np.ndarray  # world positions of the visible receivers, (N, 3)
     spot: LightFrustum | None = None  # a spot light's perspective frustum; None: directional
     light_position: np.ndarray | None = None  # a spot light's position
 
@@ -167,8 +166,8 @@ class ViewSetup:
     @property
     def visible_depth_range(self) -> tuple[float, float] | None:
         """n and f: the nearest and farthest view depth of the visible receivers (None when no
-        receiver is visible or none was given)."""
-        if self.visible is None or len(self.visible) == 0:
+        receiver is visible)."""
+        if len(self.visible) == 0:
             return None
         depth = self.view_depth(self.visible)
         return float(depth.min()), float(depth.max())
@@ -322,7 +321,7 @@ class LightSpace:
     eye: np.ndarray | None
     forward: np.ndarray | None  # unit view direction here
     up: np.ndarray | None  # the camera's up direction here
-    visible: np.ndarray | None  # the visible receivers here
+    visible: np.ndarray  # the visible receivers here
     rigid: np.ndarray  # world -> rigid light view, rotation only (-z: the light's travel)
     origin: np.ndarray  # world origin of the map's rigid view
 
@@ -347,14 +346,12 @@ def light_space(setup: ViewSetup) -> LightSpace:
     receivers_here = _project(clip, receivers)
     body = caster_body(receivers_here, -light, _CLIP_CUBE)
     world_body = _project(np.linalg.inv(clip), body)
-    eye = forward = up = visible = None
+    eye = forward = up = None
     if float(clip[3] @ np.append(setup.eye, 1.0)) > 1e-9 * float(np.abs(clip[3]).max()):
         eye = _project(clip, setup.eye[None])[0]
         forward = _direction_at(clip, setup.eye, setup.forward)
         up = _direction_at(clip, setup.eye, setup.view[1, :3])
-    if setup.visible is not None:
-        seen = setup.visible[_homogeneous(setup.visible) @ clip[3] > 0]
-        visible = _project(clip, seen)
+    visible = _project(clip, setup.visible)  # all inside its frustum (view_setup)
     rigid = setup.spot.view.copy()
     rigid[:3, 3] = 0.0
     return LightSpace(clip, light, receivers_here, body, world_body, eye, forward, up, visible,
@@ -373,7 +370,7 @@ def space_depth_range(space: LightSpace, setup: ViewSetup) -> tuple[float, float
     """n and f in the light's space: the view depths of the visible receivers (without them,
     of the receiver body, from the camera's near plane on), measured there from the camera along
     its view direction."""
-    seen = space.visible is not None and len(space.visible) > 0
+    seen = len(space.visible) > 0
     points = space.visible if seen else space.receivers
     if setup.spot is None:
         depth = setup.view_depth(points)
@@ -510,13 +507,13 @@ def light_space_warp(setup: ViewSetup, res: int, eye_distance: EyeDistance) -> W
     depth = max(float(along.max() - along.min()), 1e-9)
     if space.eye is None:
         near = far = optimal = float("nan")
-        p_near, lateral = LAMBDA_MAX * depth, float(local[:, 0].mean())
+        lam, lateral = LAMBDA_MAX, float(local[:, 0].mean())
     else:
         near, far = space_depth_range(space, setup)
         optimal = float(n_opt(theta, near, far))
-        p_near = float(np.clip(eye_distance(theta, phi, near, far, depth), 1e-6 * depth,
-                               LAMBDA_MAX * depth))
+        lam = float(np.clip(eye_distance(theta, phi, near, far, depth) / depth, 1e-6, LAMBDA_MAX))
         lateral = float(basis[0, :3] @ space.eye)
+    p_near = lam * depth
     # P's eye: the camera's lateral position, p_near before the body along the warp axis
     origin = np.array([lateral, along.min() - p_near, 0.0])
     to_p = np.eye(4)
@@ -529,8 +526,8 @@ def light_space_warp(setup: ViewSetup, res: int, eye_distance: EyeDistance) -> W
                      [0, 0, -1, 0],
                      [0, 1, 0, 0]], dtype=np.float64)
     clip = cube_fit(warp @ to_p @ basis, space.receivers, space.body) @ space.to_space
-    return Warp(frustum_from_clip(space.rigid, clip, res, space.origin), clip, theta, phi,
-                p_near / depth, near, far, p_near, optimal)
+    return Warp(frustum_from_clip(space.rigid, clip, res, space.origin), clip, theta, phi, lam,
+                near, far, p_near, optimal)
 
 
 def warp_columns(warp: Warp) -> dict:
@@ -599,8 +596,7 @@ def post_perspective_warp(setup: ViewSetup, res: int) -> PostPerspective:
         projection = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, -sign],
                                [0, 0, -1, 0]], dtype=np.float64)
     clip = cube_fit(projection @ light_view @ camera, receivers, body)
-    fallback = setup.visible is not None and bool(outside_unit_cube(
-        clip, setup.visible, np.ones(len(setup.visible), bool)).any())
+    fallback = bool(outside_unit_cube(clip, setup.visible, np.ones(len(setup.visible), bool)).any())
     if fallback:
         theta = space_theta(space)
         clip = unwarped_clip(space, oriented_basis(space.light, warp_axis(space, theta, setup.phi)))
