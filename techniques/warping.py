@@ -334,6 +334,8 @@ def _direction_at(matrix: np.ndarray, point: np.ndarray, direction: np.ndarray) 
 
 
 def light_space(setup: ViewSetup) -> LightSpace:
+    """The receiver body, its casters, the camera and the visible receivers where the light is
+    directional."""
     receivers = receiver_body(setup)
     if setup.spot is None:
         body = caster_body(receivers, -setup.light, setup.bounds)
@@ -367,15 +369,15 @@ def space_theta(space: LightSpace) -> float:
 
 
 def space_depth_range(space: LightSpace, setup: ViewSetup) -> tuple[float, float]:
-    """n and f in the light's space: the view depths of the visible receivers (without them,
-    of the receiver body, from the camera's near plane on), measured there from the camera along
-    its view direction."""
-    seen = len(space.visible) > 0
-    points = space.visible if seen else space.receivers
+    """n and f in the light's space: the view depths of the visible receivers (where none is
+    visible, of the receiver body from the camera's near plane on), for a spot light measured
+    in its post-projective space from the camera along its view direction there."""
     if setup.spot is None:
-        depth = setup.view_depth(points)
-        near = float(depth.min()) if seen else max(float(depth.min()), setup.near)
+        visible = setup.visible_depth_range
+        depth = np.array(visible) if visible else setup.view_depth(space.receivers)
+        near = float(depth.min()) if visible else max(float(depth.min()), setup.near)
     else:
+        points = space.visible if len(space.visible) else space.receivers
         depth = (points - space.eye) @ space.forward
         near = max(float(depth.min()), 1e-9 * float(np.abs(depth).max()))
     return near, max(float(depth.max()), near * (1 + 1e-6))
