@@ -1,9 +1,9 @@
 """Expand sweeps into runs, run them, append one record per run. Resumable.
 
 Each run has a stable id (scene description and resolution, technique, parameters, the
-technique's code version, frames, warm-up and reference settings). Runs whose id is already
-in ``DIR/results.csv`` are skipped, so a killed sweep restarted with the same arguments
-finishes the rest without duplicates.
+technique's code version, frames, warm-up, interval statistics and reference settings). Runs
+whose id is already in ``DIR/results.csv`` are skipped, so a killed sweep restarted with the
+same arguments finishes the rest without duplicates.
 """
 
 from __future__ import annotations

@@ -159,3 +159,10 @@ def test_fit_recovers_known_coefficients():
     quality = cost_model.fit_quality(rows, fitted)
     assert quality["r2"] == pytest.approx(1.0) and quality["worst_relative_error"] < 1e-6
     assert (cost_model.LLVMPIPE.vector() >= 0).all()
+
+
+def test_fit_report_on_a_folder_without_runs_exits_2(tmp_path, capsys):
+    """Catches: a traceback (or a fit of nothing) for a folder with no usable runs."""
+    assert cost_model.main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "0 ok runs with work counters" in err
