@@ -177,24 +177,23 @@ def _up_for(direction: np.ndarray) -> np.ndarray:
     return any_perpendicular_up(direction)
 
 
-def _trace_pixels(mi, mscene, scene: BuiltScene, index, samples: int, seed: int):
-    """(V, covered) of the pixels numbered ``index`` (row-major).
+def _trace_pixels(mi, mscene, scene: BuiltScene, x, y, samples: int, seed: int):
+    """(V, covered) of the pixels (x, y).
 
-    With a JIT variant ``index`` is an array and everything below is one Dr.Jit kernel: per
-    pixel a PCG32 stream seeded by a TEA hash of (seed, pixel), a loop over the ``samples``
-    strata (jittered film position, coherent primary ray, shadow ray from the hit), and the
-    coverage ray through the pixel centre. Our scene-dependent values are opaque (Mitsuba's
-    sensor still bakes in the film size), so Dr.Jit's kernel cache serves later scenes. With
-    ``scalar_rgb`` ``index`` is one int and the same code runs as plain Python, drawing the same
-    random numbers.
+    With a JIT variant ``x`` and ``y`` are arrays and everything below is one Dr.Jit kernel:
+    per pixel a PCG32 stream seeded by a TEA hash of (seed, pixel index), a loop over the
+    ``samples`` strata (jittered film position, coherent primary ray, shadow ray from the hit),
+    and the coverage ray through the pixel centre. Our scene-dependent values are opaque
+    (Mitsuba's sensor still bakes in the film size), so Dr.Jit's kernel cache serves later
+    scenes. With ``scalar_rgb`` they are ints and the same code runs as plain Python, drawing
+    the same random numbers.
     """
     import drjit as dr
 
     width, height = dr.opaque(mi.UInt32, scene.width), dr.opaque(mi.UInt32, scene.height)
     side = dr.opaque(mi.UInt32, math.isqrt(samples))
-    x, y = index % width, index // width
     rng = mi.PCG32()
-    state, sequence = mi.sample_tea_32(dr.opaque(mi.UInt32, seed), index)
+    state, sequence = mi.sample_tea_32(dr.opaque(mi.UInt32, seed), y * width + x)
     rng.seed(initstate=mi.UInt64(state), initseq=mi.UInt64(sequence))
     sensor = mscene.sensors()[0]
 
@@ -234,21 +233,39 @@ def _trace_pixels(mi, mscene, scene: BuiltScene, index, samples: int, seed: int)
     return visibility, covered
 
 
+def _strip_pixels(mi, lane, width: int, height: int):
+    """(x, y) of each lane when lanes run down two-row strips (x0y0, x0y1, x1y0, ...): a SIMD
+    packet then traces a 4x2 block of pixels rather than 8x1, about 10% faster. An odd last row
+    runs alone."""
+    import drjit as dr
+
+    width, height = dr.opaque(mi.UInt32, width), dr.opaque(mi.UInt32, height)
+    strip = lane // (2 * width)
+    within = lane - strip * 2 * width
+    paired = 2 * strip + 1 < height
+    return dr.select(paired, within // 2, within), 2 * strip + dr.select(paired, within % 2, 0)
+
+
 def _trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
     """(V, covered) as (H, W) arrays: one kernel launch (JIT), or a loop over pixels (scalar)."""
     import drjit as dr
 
     w, h = scene.width, scene.height
     if dr.is_jit_v(mi.Float):
-        visibility, covered = _trace_pixels(mi, mscene, scene, dr.arange(mi.UInt32, w * h),
-                                            samples, seed)
+        x, y = _strip_pixels(mi, dr.arange(mi.UInt32, w * h), w, h)
+        lane_visibility, lane_covered = _trace_pixels(mi, mscene, scene, x, y, samples, seed)
+        visibility, covered = dr.empty(mi.Float, w * h), dr.empty(mi.Bool, w * h)
+        pixel = y * dr.opaque(mi.UInt32, w) + x
+        dr.scatter(visibility, lane_visibility, pixel)
+        dr.scatter(covered, lane_covered, pixel)
         dr.eval(visibility, covered)
         return (np.asarray(visibility, np.float32).reshape(h, w),
                 np.asarray(covered, bool).reshape(h, w))
-    visibility, covered = np.empty(w * h, np.float32), np.empty(w * h, bool)
-    for i in range(w * h):
-        visibility[i], covered[i] = _trace_pixels(mi, mscene, scene, i, samples, seed)
-    return visibility.reshape(h, w), covered.reshape(h, w)
+    visibility, covered = np.empty((h, w), np.float32), np.empty((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            visibility[y, x], covered[y, x] = _trace_pixels(mi, mscene, scene, x, y, samples, seed)
+    return visibility, covered
 
 
 def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
