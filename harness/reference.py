@@ -235,7 +235,7 @@ def _trace_pixels(mi, mscene, scene: BuiltScene, x, y, samples: int, seed: int):
 
 def _strip_pixels(mi, lane, width: int, height: int):
     """(x, y) of each lane when lanes run down two-row strips (x0y0, x0y1, x1y0, ...): a SIMD
-    packet then traces a 4x2 block of pixels rather than 8x1, about 10% faster. An odd last row
+    packet then traces a 4x2 block of pixels rather than 8x1 (up to 10% faster). An odd last row
     runs alone."""
     import drjit as dr
 
@@ -285,7 +285,7 @@ def _read_cached(path: Path, scene: BuiltScene) -> Reference | None:
         with np.load(path) as z:
             visibility, covered, direct = z["visibility"], z["covered"], z["direct"]
             seconds, variant = float(z["seconds"]), str(z["variant"])
-    except Exception:  # noqa: BLE001 - numpy's readers raise many types for a damaged file
+    except Exception:  # numpy raises many types for a damaged file (EOFError, TypeError, ...)
         return None
     shape = (scene.height, scene.width)
     wants_direct = "direct" in scene.config.effects
