@@ -65,6 +65,7 @@ class TechniqueFrame:
         cls = registry.get(technique)
         self.frame, self.technique = frame, cls(cls.Params(**params))
         self.technique.prepare(frame)
+        self.technique.update(frame)
         self.scene_meter, self.meter = PassMeter(frame.timer), PassMeter(frame.timer)
 
     def __call__(self) -> tuple[float, float]:

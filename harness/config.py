@@ -211,6 +211,33 @@ SceneObject = Annotated[
 ]
 
 
+MAX_ORBIT_DEG = 3600.0  # ten turns: more is a typo, not a path
+MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
+
+
+class Motion(Strict):
+    """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
+    by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
+    light's position and target together) turns about the up axis through the centre of the
+    scene's bounds by ``light_orbit`` degrees, and the camera moves toward its target by the
+    fraction ``camera_dolly`` of its distance (negative: away). Frame t is at t / (frames - 1)
+    of each path, so the first frame is the scene as written and the last ends the paths
+    (harness/motion.py)."""
+
+    frames: int = Field(ge=2, le=1000)
+    camera_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG, allow_inf_nan=False)
+    light_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG, allow_inf_nan=False)
+    camera_dolly: float = Field(0.0, ge=MIN_DOLLY, allow_inf_nan=False)
+
+    @field_validator("camera_dolly")
+    @classmethod
+    def _short_of_the_target(cls, v):
+        if v >= 1:
+            raise ValueError(f"must be < 1: a dolly of 1 or more reaches or passes through the "
+                             f"camera's target, got {v}")
+        return v
+
+
 class Scene(Strict):
     resolution: tuple[int, int] = (512, 512)
     camera: Camera
@@ -218,6 +245,7 @@ class Scene(Strict):
     effects: list[Literal["shadow", "direct"]] = ["shadow"]
     ambient: float = Field(0.1, ge=0, le=1)
     objects: list[SceneObject]
+    motion: Motion | None = None  # a still scene without it
 
     @field_validator("resolution")
     @classmethod

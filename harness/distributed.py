@@ -54,7 +54,7 @@ def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
 
     first = specs[0]
     context = get_context(platform)
-    reference = compute_reference(scene, samples=first.samples, seed=first.ref_seed)
+    reference = compute_reference(scene.at_frame(0), samples=first.samples, seed=first.ref_seed)
     frame, scene_ms, frags_scene = _frame_on_worker(scene, first.frames, first.warmup)
     done = {}
     for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,

@@ -75,16 +75,29 @@ def edge_band(ref, *, mask=None, width: int = EDGE_WIDTH) -> np.ndarray:
     return boundary & mask
 
 
-def edge_mae(v, ref, *, mask=None, width: int = EDGE_WIDTH) -> float:
-    """Mean |V - V_ref| within ``width`` pixels of a reference shadow boundary."""
-    v, ref, mask = _check(v, ref, mask)
-    return _mean(np.abs(v - ref)[edge_band(ref, mask=mask, width=width)])
+def _band(ref, mask, width: int, band) -> np.ndarray:
+    """``band`` (an :func:`edge_band` of ``ref`` already computed: runs scored against one
+    reference share it), checked, or the edge band computed now."""
+    if band is None:
+        return edge_band(ref, mask=mask, width=width)
+    band = np.asarray(band)
+    if band.shape != ref.shape or band.dtype != bool:
+        raise ValueError(f"band must be bool of shape {ref.shape}, got {band.dtype} {band.shape}")
+    return band
 
 
-def levels(v, ref, *, mask=None, width: int = EDGE_WIDTH, decimals: int = 5) -> int:
-    """Number of distinct V values (rounded to ``decimals``) inside the edge band."""
+def edge_mae(v, ref, *, mask=None, width: int = EDGE_WIDTH, band=None) -> float:
+    """Mean |V - V_ref| within ``width`` pixels of a reference shadow boundary (``band``: that
+    edge band, precomputed)."""
     v, ref, mask = _check(v, ref, mask)
-    return int(np.unique(np.round(v[edge_band(ref, mask=mask, width=width)], decimals)).size)
+    return _mean(np.abs(v - ref)[_band(ref, mask, width, band)])
+
+
+def levels(v, ref, *, mask=None, width: int = EDGE_WIDTH, decimals: int = 5, band=None) -> int:
+    """Number of distinct V values (rounded to ``decimals``) inside the edge band (``band``:
+    precomputed)."""
+    v, ref, mask = _check(v, ref, mask)
+    return int(np.unique(np.round(v[_band(ref, mask, width, band)], decimals)).size)
 
 
 def ssim(v, ref, *, mask=None, win_size: int = 7) -> float:
@@ -125,6 +138,35 @@ def flip(image, reference_image, *, pixels_per_degree: float = 67.0) -> float:
         np.clip(reference_image, 0, 1), np.clip(image, 0, 1), "LDR", inputsRGB=False,
         applyMagma=False, parameters={"ppd": pixels_per_degree})
     return float(mean)
+
+
+def flicker(v, v_previous, ref, ref_previous, *, mask=None, mask_previous=None) -> float:
+    """Mean |(V - V_previous) - (V_ref - V_ref_previous)| over the pixels compared in both
+    frames (``mask`` and ``mask_previous``): the change between two frames of a sequence that
+    the truth does not make. A technique wrong by the same amount in both frames scores 0;
+    crawling edges and pops score high."""
+    v, ref, mask = _check(v, ref, mask)
+    v_previous, ref_previous, mask_previous = _check(v_previous, ref_previous, mask_previous)
+    if v.shape != v_previous.shape:
+        raise ValueError(f"frames of different shapes: {v.shape} and {v_previous.shape}")
+    change = (v - v_previous) - (ref - ref_previous)
+    return _mean(np.abs(change)[mask & mask_previous])
+
+
+POP_FACTOR = 5.0  # a frame flickering this many times the sequence's median pops
+
+
+def pop_frames(flicker_series, *, factor: float = POP_FACTOR) -> int:
+    """Frames whose :func:`flicker` exceeds ``factor`` times the median over the sequence's
+    frames (NaN, a frame with no pixel compared in both, is left out): discontinuities such
+    as a warp changing its basis."""
+    series = np.asarray(flicker_series, dtype=np.float64)
+    if series.ndim != 1:
+        raise ValueError(f"expected a 1-D series, got shape {series.shape}")
+    series = series[~np.isnan(series)]
+    if not series.size:
+        return 0
+    return int(np.count_nonzero(series > factor * np.median(series)))
 
 
 def nonfinite(*arrays) -> int:

@@ -11,12 +11,14 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
+import math
 import os
 import platform
 import subprocess
 import sys
 import time
 import traceback
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -174,7 +176,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                                  + ".".join(map(str, loc)))
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
                                                  where if experiment_path else "--set")
-                        spec = RunSpec(scene_name, tech, params, width, height, exp.frames,
+                        # a moving scene's run measures each frame of its sequence once
+                        frames = scene_at.frames if scene_at.frames > 1 else exp.frames
+                        spec = RunSpec(scene_name, tech, params, width, height, frames,
                                        exp.warmup, exp.reference.samples, exp.reference.seed,
                                        scene_at.key, version, exp.statistics)
                         if spec.run_id not in seen:
@@ -322,18 +326,23 @@ class _Timed:
     technique: object = None
     output: object = None  # harness.technique.ShadowOutput
     measured: int = 0  # measured frames rendered so far
+    sequence: "_Sequence | None" = None  # a moving scene's run: what it keeps across frames
 
     @property
     def alive(self) -> bool:
         return "status" not in self.row
 
 
-def _render(timed: _Timed, frame, measuring: bool) -> None:
+def _render(timed: _Timed, frame, measuring: bool, update: bool = False) -> None:
+    """One frame of the run; ``update``: the technique's update first, in the same frame (a
+    moving scene's frame: its timed part counts in the frame's time)."""
     from .technique import reset_gl_state
 
     try:
         with frame.metered(timed.meter):
             timed.meter.new_frame(measuring)
+            if update:
+                timed.technique.update(frame)
             timed.output = timed.technique.render(frame)
         timed.measured += measuring
     finally:
@@ -372,32 +381,38 @@ def _attempt(timed: _Timed, step, *args) -> bool:
 
 
 def _start(spec: RunSpec, frame, row: dict) -> _Timed:
-    """Prepare the run and render its warm-up frames (with no warm-up, its first measured
-    frame): its map bytes are then known."""
+    """Prepare the run, update it to the frame and render its warm-up frames (with no
+    warm-up, its first measured frame; on a moving scene, one unmeasured frame): its map
+    bytes are then known."""
     cls = registry.get(spec.technique)
     timed = _Timed(spec, row, frame.new_meter())
+    moving = frame.frames > 1
+    warmup = max(spec.warmup, 1) if moving else spec.warmup
 
     def prepare():
         timed.technique = cls(cls.Params(**spec.params))
         timed.technique.prepare(frame)
-        for _ in range(spec.warmup):
+        with frame.metered(timed.meter):  # not a measured frame: untimed
+            timed.technique.update(frame)
+        for _ in range(warmup):
             _render(timed, frame, measuring=False)
 
-    if _attempt(timed, prepare) and spec.warmup == 0:
+    if _attempt(timed, prepare) and warmup == 0:
         _measure_round([timed], frame, 0)
     return timed
 
 
-def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
-    """One measured frame of each run, starting at a position that turns each round (no run
-    always follows the same one). The CPU time other processes used during the round is
-    attributed to each run in proportion to its share of the round's wall time."""
+def _measure_round(batch: list[_Timed], frame, turn: int, update: bool = False) -> None:
+    """One measured frame of each run (``update``: each technique's update first), starting
+    at a position that turns each round (no run always follows the same one). The CPU time
+    other processes used during the round is attributed to each run in proportion to its
+    share of the round's wall time."""
     order = batch[turn % len(batch):] + batch[:turn % len(batch)]
     walls = []
     before, began = cpu_sample(), time.perf_counter()
     for timed in order:
         start = time.perf_counter()
-        if _attempt(timed, _render, timed, frame, True):
+        if _attempt(timed, _render, timed, frame, True, update):
             walls.append((timed, time.perf_counter() - start))
     round_s, after = time.perf_counter() - began, cpu_sample()
     if before is None or after is None or round_s <= 0:
@@ -407,23 +422,41 @@ def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
         timed.meter.add_load(others_s * wall / round_s, capacity_s * wall / round_s)
 
 
+def _batches(specs: list[RunSpec], start):
+    """The runs started (``start(spec)``: prepared and warmed up) in batches that close at
+    BATCH_RUNS runs or BATCH_BYTES of maps; yields (the runs that could not start, the
+    batch)."""
+    queue = list(specs)
+    while queue:
+        failed, batch, batch_bytes = [], [], 0
+        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
+            timed = start(queue.pop(0))
+            if not timed.alive:
+                failed.append(timed)
+                continue
+            batch.append(timed)
+            batch_bytes += timed.output.mem_bytes
+        yield failed, batch
+
+
 def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
               renderer: str):
     """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
     interleaved rounds; yields ``(spec, row, arrays)`` as each run finishes (arrays None
-    unless it ran). Never raises for a technique's failure: that is the row's status."""
-    queue = list(specs)
-    while queue:
-        batch, batch_bytes = [], 0
-        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
-            spec = queue.pop(0)
-            timed = _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
-                                                        renderer))
-            if not timed.alive:
-                yield spec, timed.row, None
-                continue
-            batch.append(timed)
-            batch_bytes += timed.output.mem_bytes
+    unless it ran). Never raises for a technique's failure: that is the row's status.
+
+    On a moving scene (``frame.frames`` > 1, ``reference`` its frame 0's) each round is a
+    frame of the sequence: :func:`_run_sequence`."""
+    def start(spec):
+        return _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
+                                                  renderer))
+
+    if frame.frames > 1:
+        yield from _run_sequence(_batches(specs, start), frame)
+        return
+    for failed, batch in _batches(specs, start):
+        for timed in failed:
+            yield timed.spec, timed.row, None
         turn = 0
         while live := [t for t in batch if t.alive and t.measured < t.spec.frames]:
             _measure_round(live, frame, turn)
@@ -475,15 +508,14 @@ def _timing_columns(timed: _Timed) -> dict:
                 for p in passes])
 
 
-def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
-    """The finished run's row (timing, counters, metrics) and arrays, from its last frame."""
+def _cost_columns(timed: _Timed, frame) -> dict:
+    """Timing, counters, fill, memory and the range of V, from the run's last frame."""
     row, output = timed.row, timed.output
     v = output.visibility
-    mask = frame.compared_pixels(reference.covered)
-    row.update(_timing_columns(timed))
+    columns = _timing_columns(timed)
     frags_shadow = (output.shadow_fragments if output.shadow_fragments is not None
-                    else sum(p["fragments"] for p in row["passes"]))
-    row.update(
+                    else sum(p["fragments"] for p in columns["passes"]))
+    columns.update(
         frags_shadow=frags_shadow, overdraw=frags_shadow / max(row["frags_scene"], 1),
         mem_bytes=output.mem_bytes, fetches_per_px=output.fetches_per_px,
         covered_px=int(frame.arrays.covered.sum()),
@@ -492,30 +524,210 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
         v_max=float(np.nanmax(v)) if v.size else None,
         warnings="; ".join(output.warnings + ([row["warnings"]] if "warnings" in row else [])),
     )
-    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)
-    v_clean = np.nan_to_num(v, nan=0.5, posinf=1.0, neginf=0.0)
-    ref_v = reference.visibility
-    row.update(
-        mae=metrics.mae(v_clean, ref_v, mask=mask),
-        rmse=metrics.rmse(v_clean, ref_v, mask=mask),
-        wrong_pct=metrics.wrong_pct(v_clean, ref_v, mask=mask),
-        edge_mae=metrics.edge_mae(v_clean, ref_v, mask=mask),
-        levels=metrics.levels(v_clean, ref_v, mask=mask),
-        ssim=metrics.ssim(v_clean, ref_v, mask=mask),
-        psnr=metrics.psnr(v_clean, ref_v, mask=mask),
+    columns["gpu_estimate_ms"] = cost_model.estimate_ms({**row, **columns})
+    return columns
+
+
+def _clean(v: np.ndarray) -> np.ndarray:
+    """V as the metrics see it: NaN half lit, infinities clipped."""
+    return np.nan_to_num(v, nan=0.5, posinf=1.0, neginf=0.0)
+
+
+@dataclass
+class _Truth:
+    """A frame's reference as the metrics see it, shared by the runs scored against it: the
+    compared pixels, V_ref in float64 and its edge band."""
+
+    index: int  # the frame of the sequence (0 for a still scene)
+    reference: object  # harness.reference.Reference
+    mask: np.ndarray  # Frame.compared_pixels
+
+    def __post_init__(self):
+        self.visibility = self.reference.visibility.astype(np.float64)
+        self.band = metrics.edge_band(self.visibility, mask=self.mask)
+
+
+def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> dict:
+    """The error metrics of one frame's V against its reference on the compared pixels."""
+    v, ref_v, mask, band = v_clean.astype(np.float64), truth.visibility, truth.mask, truth.band
+    columns = dict(
+        mae=metrics.mae(v, ref_v, mask=mask),
+        rmse=metrics.rmse(v, ref_v, mask=mask),
+        wrong_pct=metrics.wrong_pct(v, ref_v, mask=mask),
+        edge_mae=metrics.edge_mae(v, ref_v, mask=mask, band=band),
+        levels=metrics.levels(v, ref_v, mask=mask, band=band),
+        ssim=metrics.ssim(v, ref_v, mask=mask),
+        psnr=metrics.psnr(v, ref_v, mask=mask),
     )
+    reference = truth.reference
     if reference.direct is not None:
         a = frame.arrays
         ambient = frame.scene.config.ambient
         shaded = metrics.shade(v_clean, a.normal, a.position, a.albedo, frame.scene.light,
                                ambient=ambient)
         shaded_ref = reference.direct + (ambient * a.albedo)[..., None]
-        row["flip"] = metrics.flip(shaded, shaded_ref)
+        columns["flip"] = metrics.flip(shaded, shaded_ref)
+    return columns
+
+
+def _frame_arrays(output, frame) -> dict[str, np.ndarray]:
+    """V, coverage and the technique's diagnostic maps of one frame, as a run stores them."""
+    return {"visibility": output.visibility.astype(np.float32), "covered": frame.arrays.covered,
+            **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
+
+
+def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
+    """The finished run's row (timing, counters, metrics) and arrays, from its last frame."""
+    row, output = timed.row, timed.output
+    row.update(_cost_columns(timed, frame))
+    truth = _Truth(0, reference, frame.compared_pixels(reference.covered))
+    row.update(_metric_columns(_clean(output.visibility), frame, truth))
     row.update(output.extra)
     row["status"] = "ok"
-    arrays = {"visibility": v.astype(np.float32), "covered": frame.arrays.covered,
-              **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
+    return row, _frame_arrays(output, frame)
+
+
+# --- moving scenes ----------------------------------------------------------------------------
+
+# A moving run stores, besides frame 0's arrays and its per-frame series, its worst frame's
+# V, reference and error and a strip of STRIP_RADIUS frames either side of it.
+STRIP_RADIUS = 2
+# The worst frame of a sequence's metrics: the largest of each; of ssim and psnr the smallest.
+WORST_IS_LOWEST = ("ssim", "psnr")
+
+
+@dataclass
+class _Sequence:
+    """What a run on a moving scene keeps across frames: per-frame values, its previous V
+    (for flicker), frame 0's arrays, the worst frame so far and the strip around it. Memory
+    stays a few images per run however long the sequence."""
+
+    series: dict[str, list] = field(default_factory=dict)
+    extras: dict[str, list] = field(default_factory=dict)  # the technique's columns per frame
+    previous: np.ndarray | None = None
+    first: dict | None = None  # frame 0's arrays
+    recent: list = field(default_factory=list)  # (t, V, V_ref) of the last STRIP_RADIUS frames
+    worst_key: tuple = (-math.inf, -math.inf)
+    worst: dict | None = None
+    strip: list = field(default_factory=list)  # (t, V, V_ref) around the worst frame
+    strip_wanted: int = 0  # frames after the worst still to join the strip
+    nonfinite: int = 0
+    v_range: tuple = (math.inf, -math.inf)
+
+    def add(self, name: str, value) -> None:
+        self.series.setdefault(name, []).append(value)
+
+
+def _observe(timed: _Timed, frame, truth: _Truth, previous: _Truth | None) -> None:
+    """Score frame ``truth.index`` of a run on a moving scene into its :class:`_Sequence`."""
+    sequence = timed.sequence = timed.sequence or _Sequence()
+    output, t = timed.output, truth.index
+    v = _clean(output.visibility)
+    ref_v = truth.reference.visibility
+    columns = _metric_columns(v, frame, truth)
+    for name, value in columns.items():
+        sequence.add(name, value)
+    flicker = (math.nan if previous is None else
+               metrics.flicker(v, sequence.previous, ref_v, previous.reference.visibility,
+                               mask=truth.mask, mask_previous=previous.mask))
+    sequence.add("flicker", flicker)
+    for name, value in output.extra.items():
+        sequence.extras.setdefault(name, []).append(value)
+    sequence.nonfinite += output.nonfinite + metrics.nonfinite(output.visibility)
+    if output.visibility.size:
+        low, high = sequence.v_range
+        sequence.v_range = (min(low, float(np.nanmin(output.visibility))),
+                            max(high, float(np.nanmax(output.visibility))))
+    if t == 0:
+        sequence.first = _frame_arrays(output, frame)
+    # the worst frame: the largest flicker (a pop), the largest mae among equals
+    key = (0.0 if math.isnan(flicker) else flicker,
+           -math.inf if math.isnan(columns["mae"]) else columns["mae"])
+    if key > sequence.worst_key:
+        sequence.worst_key = key
+        error = np.where(truth.mask, np.abs(v - ref_v), np.nan).astype(np.float32)
+        sequence.worst = dict(worst_frame=np.int64(t), worst_visibility=v.astype(np.float32),
+                              worst_reference=ref_v, worst_error=error)
+        sequence.strip = sequence.recent + [(t, v, ref_v)]
+        sequence.strip_wanted = STRIP_RADIUS
+    elif sequence.strip_wanted:
+        sequence.strip.append((t, v, ref_v))
+        sequence.strip_wanted -= 1
+    sequence.recent = (sequence.recent + [(t, v, ref_v)])[-STRIP_RADIUS:]
+    sequence.previous = v
+
+
+def _sequence_score(timed: _Timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
+    """A moving run's row and arrays: metrics as the mean over frames and their worst frame,
+    flicker, pop frames; costs from the last frame, timing over the sequence's frames."""
+    row, sequence = timed.row, timed.sequence
+    row.update(_cost_columns(timed, frame))
+    series = {name: np.asarray(values, np.float64) for name, values in sequence.series.items()}
+    flicker = series.pop("flicker")
+    with warnings.catch_warnings():  # a metric NaN in every frame stays NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for name, values in series.items():
+            row[name] = float(np.nanmean(values))
+            if name in WORST_IS_LOWEST:
+                row[f"{name}_min"] = float(np.nanmin(values))
+            elif name != "levels":
+                row[f"{name}_max"] = float(np.nanmax(values))
+        row.update(flicker=float(np.nanmean(flicker[1:])),
+                   flicker_max=float(np.nanmax(flicker[1:])))
+    row.update(pop_frames=metrics.pop_frames(flicker[1:]),
+               worst_frame=int(sequence.worst["worst_frame"]), nonfinite=sequence.nonfinite,
+               v_min=sequence.v_range[0], v_max=sequence.v_range[1])
+    for name, values in sequence.extras.items():
+        numeric = all(isinstance(x, (int, float, np.number)) and not isinstance(x, str)
+                      for x in values)
+        row[name] = float(np.mean(values)) if numeric else values[-1]
+        if numeric:
+            series[f"extra_{name}"] = np.asarray(values, np.float64)
+    row["status"] = "ok"
+    strip_frames, strip_v, strip_ref = zip(*sequence.strip)
+    arrays = {**sequence.first, **sequence.worst,
+              **{f"series_{name}": values for name, values in series.items()},
+              "series_flicker": flicker,
+              "series_frame_ms": np.asarray(timed.meter.frame_totals_ms, np.float64),
+              "strip_frames": np.asarray(strip_frames, np.int64),
+              "strip_visibility": np.stack(strip_v).astype(np.float32),
+              "strip_reference": np.stack(strip_ref).astype(np.float32)}
     return row, arrays
+
+
+def _run_sequence(batches, frame):
+    """Runs on a moving scene (``frame`` at its frame 0), batch by batch: each batch goes
+    through the sequence, one interleaved round per frame (each technique's update, then its
+    render, measured), and each run's frame is scored as it is rendered against that frame's
+    reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run."""
+    from .reference import compute_reference
+
+    for failed, batch in batches:
+        for timed in failed:
+            yield timed.spec, timed.row, None
+        previous, traced_s = None, 0.0
+        for t in range(frame.frames):
+            if not any(timed.alive for timed in batch):
+                break
+            frame.move_to(t)
+            spec = batch[0].spec
+            reference = compute_reference(frame.scene, samples=spec.samples, seed=spec.ref_seed)
+            traced_s += reference.seconds
+            truth = _Truth(t, reference, frame.compared_pixels(reference.covered))
+            live = [timed for timed in batch if timed.alive]
+            _measure_round(live, frame, t, update=True)
+            for timed in live:
+                if timed.alive:
+                    _attempt(timed, _observe, timed, frame, truth, previous)
+            previous = truth
+        for timed in batch:
+            if not timed.alive:
+                yield timed.spec, timed.row, None
+                continue
+            _release(timed)
+            timed.row["ref_seconds"] = traced_s
+            yield (timed.spec, *_sequence_score(timed, frame))
+        frame.move_to(0)  # the next batch warms up at frame 0
 
 
 def reference_array_path(scene: str, width: int, height: int, samples: int, seed: int) -> Path:
@@ -665,7 +877,7 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
     for (scene_name, width, height, samples, ref_seed), specs in groups.items():
         scene = plan.scenes[scene_name].with_resolution(width, height)
         bar.set_description_str(f"{scene_name} {width}x{height}: reference")
-        reference = compute_reference(scene, samples=samples, seed=ref_seed)
+        reference = compute_reference(scene.at_frame(0), samples=samples, seed=ref_seed)
         frame = Frame(scene)
         try:
             frames, warmup = specs[0].frames, specs[0].warmup
@@ -687,6 +899,7 @@ class Evaluation:
     reference: object  # harness.reference.Reference
     frame_arrays: object  # harness.gbuffer.GBufferArrays
     mask: np.ndarray  # the pixels every metric compares (Frame.compared_pixels)
+    arrays: dict | None = None  # what the run stores (a moving scene's series among them)
 
 
 def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
@@ -694,7 +907,8 @@ def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
     """Run one technique on one scene in this process and score it (for tests, notebooks).
 
     ``scene`` carries its resolution (``BuiltScene.with_resolution``); the reference comes from
-    the on-disk cache when present.
+    the on-disk cache when present. A moving scene runs its whole sequence (``frames`` is then
+    its length); ``visibility``, ``reference``, ``frame_arrays`` and ``mask`` are frame 0's.
     """
     from .gl.context import get_context
     from .reference import compute_reference
@@ -703,14 +917,15 @@ def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
     context = get_context()
     cls = registry.get(technique)
     checked = validate_params(technique, params or {}, "evaluate()")
-    spec = RunSpec(scene.name, technique, checked, scene.width, scene.height, frames, warmup,
-                   samples, 0, scene.key, cls.code_version())
-    reference = compute_reference(scene, samples=samples)
+    spec = RunSpec(scene.name, technique, checked, scene.width, scene.height,
+                   scene.frames if scene.frames > 1 else frames, warmup, samples, 0, scene.key,
+                   cls.code_version())
+    reference = compute_reference(scene.at_frame(0), samples=samples)
     frame = Frame(scene)
     try:
         scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
         row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
         return Evaluation(row, arrays["visibility"] if arrays else None, reference, frame.arrays,
-                          frame.compared_pixels(reference.covered))
+                          frame.compared_pixels(reference.covered), arrays)
     finally:
         frame.release()

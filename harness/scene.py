@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from . import config as cfg
+from . import motion as motion_paths
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,32 @@ class BuiltScene:
             self.source,
         )
 
+    @property
+    def frames(self) -> int:
+        """Frames of its ``motion`` sequence; 1 for a still scene."""
+        return self.config.motion.frames if self.config.motion else 1
+
+    def at_frame(self, t: int) -> "BuiltScene":
+        """Frame ``t`` of a moving scene: a still scene with that frame's camera and light
+        (harness/motion.py) and the same geometry. Its key is that still scene's, so each
+        frame has its own reference cache entry and frame 0 shares the scene's without
+        motion. A still scene's only frame is itself."""
+        if self.config.motion is None:
+            if t != 0:
+                raise IndexError(f"frame {t} of the still scene {self.name!r}")
+            return self
+        config = motion_paths.scene_at(self.config, self.bounds.mean(axis=0), t)
+        frame = BuiltScene(self.name, config, self.parts, _light(config.light),
+                           scene_key(config, self.source), self.source)
+        for name in _GEOMETRY:  # the same triangles: computed once per sequence
+            if name in self.__dict__:
+                frame.__dict__[name] = self.__dict__[name]
+        return frame
+
+
+# BuiltScene's cached properties that depend only on the geometry
+_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds")
+
 
 def _transform(obj: cfg.Placed) -> np.ndarray:
     scale = np.broadcast_to(np.asarray(obj.scale, dtype=float), (3,))
@@ -181,8 +208,11 @@ def _light(light) -> Light:
 
 
 def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
-    """Hash of the scene description, including the bytes of any mesh files it loads."""
-    h = hashlib.sha256(json.dumps(scene.model_dump(mode="json"), sort_keys=True).encode())
+    """Hash of the scene description, including the bytes of any mesh files it loads. A still
+    scene hashes as it did before scenes could move (no ``motion`` key)."""
+    description = scene.model_dump(mode="json", exclude={"motion"} if scene.motion is None
+                                   else None)
+    h = hashlib.sha256(json.dumps(description, sort_keys=True).encode())
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):
             h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())

@@ -1,9 +1,16 @@
 """The technique contract and the frame a technique renders into.
 
 A technique subclasses :class:`Technique`, defines ``name``, ``summary``, ``paper`` and a pydantic
-``Params`` model, and implements ``prepare``, ``render`` and ``release``. It computes per-pixel
-light visibility V for the G-buffer pixels: its last pass draws V into the frame's visibility
-target (``frame.begin_visibility()``), and ``render`` returns ``frame.output(...)``.
+``Params`` model, and implements ``prepare``, ``render`` and ``release`` (and ``update`` when
+something depends on the camera or the light). It computes per-pixel light visibility V for the
+G-buffer pixels: its last pass draws V into the frame's visibility target
+(``frame.begin_visibility()``), and ``render`` returns ``frame.output(...)``.
+
+The harness calls ``prepare(frame)`` once per run, then ``update(frame)``, then ``render(frame)``
+for each frame. On a moving scene (``motion`` in the scene file) the frame moves to each
+sequence frame's camera and light (:meth:`Frame.move_to`: same geometry, new G-buffer) and the
+harness calls ``update(frame)`` before every measured ``render``, so the technique keeps its GL
+resources across the sequence and recomputes only what depends on the view or the light.
 """
 
 from __future__ import annotations
@@ -69,6 +76,18 @@ class Technique:
     def prepare(self, frame: "Frame") -> None:
         """Allocate GL resources and upload what depends on geometry."""
 
+    def update(self, frame: "Frame") -> None:
+        """Recompute what depends on the frame's camera or light (a light frustum's fit, a
+        warp, silhouette edges, shadow volumes): called after ``prepare`` and, on a moving
+        scene, before every measured ``render``; it must give the same state when called again
+        with nothing moved.
+
+        Timing: on a moving scene the work an engine pays every frame goes inside
+        ``frame.measure(name)`` here, and counts in the frame's time as a pass of its own;
+        diagnostics a renderer would not compute (aliasing maps, fill counts) stay outside.
+        On a still scene ``update`` runs once before the warm-up and is never timed, as
+        ``prepare`` is not."""
+
     def render(self, frame: "Frame") -> ShadowOutput:
         raise NotImplementedError
 
@@ -95,12 +114,17 @@ class Technique:
 
 
 class Frame:
-    """Everything a technique may use for one scene at one resolution, owned by the harness."""
+    """Everything a technique may use for one scene at one resolution, owned by the harness.
+
+    For a moving scene ``scene`` is the frame of its sequence the frame is at (a still scene:
+    that frame's camera and light), starting at frame 0; :meth:`move_to` moves it."""
 
     def __init__(self, scene: BuiltScene):
-        self.scene = scene
+        self.sequence = scene  # the scene as given, moving or still
+        self.index = 0  # where in the sequence the frame is
+        self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
-        self.camera = camera_matrices(scene.config.camera, self.width, self.height)
+        self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
         self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
@@ -109,8 +133,26 @@ class Frame:
         # why the driver cannot count pipeline statistics ('' where it can)
         self.counters_missing = pass_measure.pipeline_statistics_missing()
         self.meter = self.new_meter()
+        self.arrays = self._camera_pass()
+
+    def _camera_pass(self):
         self.gbuffer.render(self.geometry, self.camera.view_proj)
-        self.arrays = self.gbuffer.read()
+        return self.gbuffer.read()
+
+    @property
+    def frames(self) -> int:
+        """Frames of the scene's sequence (1 for a still scene)."""
+        return self.sequence.frames
+
+    def move_to(self, index: int) -> None:
+        """Put the frame at frame ``index`` of its moving scene: that camera and light, the
+        G-buffer rendered and read again; the geometry, targets and timers stay."""
+        if index == self.index:
+            return
+        self.scene = self.sequence.at_frame(index)
+        self.index = index
+        self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
+        self.arrays = self._camera_pass()
 
     def new_meter(self) -> PassMeter:
         """A fresh pass record (one per run; its owner releases it)."""

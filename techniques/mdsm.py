@@ -161,6 +161,9 @@ class MultipleDepthShadowMap(Technique):
         self.selection = (DepthSelection(p.res, p.n, p.q, p.select, p.extra_depth)
                           if p.n > 1 else None)
 
+    def update(self, frame: Frame) -> None:
+        self.passes.update(frame)
+
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         base = self.passes.map

@@ -62,6 +62,9 @@ class PercentageCloserFiltering(Technique):
     def prepare(self, frame: Frame) -> None:
         self.passes = FilteredShadowMap(frame, self.params.res)
 
+    def update(self, frame: Frame) -> None:
+        self.passes.update(frame)
+
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         self.passes.render(frame, grid_n=math.isqrt(p.k), spacing=p.res_factor,

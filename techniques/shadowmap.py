@@ -68,6 +68,11 @@ class FilteredShadowMap:
         self.map = LightDepthMap(frame, res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
+    def update(self, frame: Frame) -> None:
+        """Fit the map to the frame's light: an engine refits it every frame (timed)."""
+        with frame.measure("light_fit"):
+            self.map.frustum = fit_light(frame.scene, self.map.res)
+
     def render(self, frame: Frame, *, grid_n: int, spacing: float, bias_min: float,
                bias_max: float, slope_bias: float, jitter: bool, seed: int) -> None:
         with frame.measure("shadow_map"):

@@ -84,8 +84,7 @@ class SilhouetteMap(Technique):
 
     def prepare(self, frame: Frame) -> None:
         res = self.params.res
-        self.frustum = fit_light(frame.scene, res)
-        self.depth_map = LightDepthMap(frame, res, half_texel_offset(self.frustum, res))
+        self.depth_map = LightDepthMap(frame, res)
         self.silhouette_fbo = Framebuffer(res, res, (GL.GL_RG32F,), depth=False)
         self.adjacency = EdgeAdjacency(frame.scene)
         self.quads = VertexArray(np.zeros((0, sum(VERTEX_SIZES)), np.float32), VERTEX_SIZES)
@@ -96,6 +95,14 @@ class SilhouetteMap(Technique):
         self.counters = GL.glGenBuffers(1)
         self.edge_count = 0
         self.counted_pixels = (0, 0)
+
+    def update(self, frame: Frame) -> None:
+        """Fit the maps to the frame's light (timed: an engine refits every frame); the
+        silhouette edges are found in the silhouette_map pass of every frame."""
+        res = self.params.res
+        with frame.measure("light_fit"):
+            self.frustum = fit_light(frame.scene, res)
+            self.depth_map.frustum = half_texel_offset(self.frustum, res)
 
     def _draw_silhouette_map(self, frame: Frame) -> None:
         res = self.params.res

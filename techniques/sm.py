@@ -37,6 +37,9 @@ class ShadowMap(Technique):
     def prepare(self, frame: Frame) -> None:
         self.passes = FilteredShadowMap(frame, self.params.res)
 
+    def update(self, frame: Frame) -> None:
+        self.passes.update(frame)
+
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         self.passes.render(frame, grid_n=1, spacing=1.0, bias_min=p.bias, bias_max=p.bias,

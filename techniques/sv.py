@@ -111,15 +111,9 @@ class ShadowVolumes(Technique):
 
     def prepare(self, frame: Frame) -> None:
         p = self.params
-        self.view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
         self.front_increments = p.method != "zfail"
-        volumes = sv_volumes.build(frame.scene.parts, frame.scene.light, caps=p.method == "zfail",
-                                   nested_counts=p.buffer == "stencil" or p.normalize == "max",
-                                   grouping=p.volumes)
-        self.volume_set = volumes
-        self.warnings = list(volumes.warnings)
-        vertices, near_clip_triangles = self._vertices(frame)
-        self.volumes = VertexArray(vertices, (4, 1))
+        self.volumes = VertexArray(np.zeros((0, 5), np.float32), (4, 1))
+        self.volume_light = self.view_proj = None  # what the volumes were last built for
         divisor = MASK_DIVISOR[p.mask_res]
         self.shares_scene_depth = divisor == 1
         self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
@@ -131,10 +125,37 @@ class ShadowVolumes(Technique):
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "sv_visibility.frag.glsl")
-        redraw = p.buffer == "screen" and self.shares_scene_depth
-        self.fill = self._count_fill()
-        self.fill.update(near_clip_triangles=near_clip_triangles,
-                         scene_passes=1 + (not self.shares_scene_depth) + redraw)
+
+    def update(self, frame: Frame) -> None:
+        """Volumes for the frame's light and camera, rebuilt and uploaded only when what they
+        depend on moved, as an engine would (timed, ``volume_build``, in every frame of a
+        moving scene, near zero where nothing moved): the light always; the camera for
+        near-plane clip polygons and for the alpha and screen buffers' draw order. Then the
+        fill count (untimed) when the light or the camera moved."""
+        p = self.params
+        light = frame.scene.light
+        light_key = (light.direction.tobytes(),
+                     b"" if light.position is None else light.position.tobytes())
+        view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
+        light_moved = light_key != self.volume_light
+        camera_moved = self.view_proj is None or not np.array_equal(view_proj, self.view_proj)
+        self.view_proj = view_proj
+        with frame.measure("volume_build"):
+            if light_moved:
+                self.volume_set = sv_volumes.build(
+                    frame.scene.parts, light, caps=p.method == "zfail",
+                    nested_counts=p.buffer == "stencil" or p.normalize == "max",
+                    grouping=p.volumes)
+                self.volume_light = light_key
+            if light_moved or (camera_moved and (p.method == "nearclip" or p.buffer != "stencil")):
+                vertices, self.near_clip_triangles = self._vertices(frame)
+                self.volumes.update(vertices)
+        if light_moved or camera_moved:
+            self.warnings = list(self.volume_set.warnings)
+            redraw = p.buffer == "screen" and self.shares_scene_depth
+            self.fill = self._count_fill()
+            self.fill.update(near_clip_triangles=self.near_clip_triangles,
+                             scene_passes=1 + (not self.shares_scene_depth) + redraw)
 
     def _vertices(self, frame: Frame) -> tuple[np.ndarray, int]:
         """Volume vertices (N, 5): homogeneous world position and 0, or a near-plane clip

@@ -714,9 +714,16 @@ class WarpedShadowMap(Technique):
         raise NotImplementedError
 
     def prepare(self, frame: Frame) -> None:
-        setup = view_setup(frame)
+        self.map = LightDepthMap(frame, self.params.res)
+        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
+
+    def update(self, frame: Frame) -> None:
+        """The warp of the frame's camera, light and visible receivers, timed (``warp_fit``:
+        an engine fits it every frame); then its aliasing and coverage diagnostics, untimed."""
         res = self.params.res
-        self.transform, columns = self.warp(setup, res)
+        with frame.measure("warp_fit"):
+            self.transform, columns = self.warp(view_setup(frame), res)
+            self.map.frustum = self.transform.frustum
         arrays = frame.arrays
         alias = alias_map(self.transform.clip, res, arrays.position, arrays.normal,
                           arrays.covered)
@@ -733,8 +740,6 @@ class WarpedShadowMap(Technique):
             outside_pct=100.0 * float(np.count_nonzero(outside))
             / max(np.count_nonzero(reached), 1),
             **columns)
-        self.map = LightDepthMap(frame, res, frustum=self.transform.frustum)
-        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params

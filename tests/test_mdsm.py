@@ -90,6 +90,7 @@ def render_once(scene, params):
     frame = Frame(scene)
     technique = MultipleDepthShadowMap(MultipleDepthShadowMap.Params(**params))
     technique.prepare(frame)
+    technique.update(frame)
     frame.meter.new_frame(True)
     output = technique.render(frame)
     return frame, technique, output

@@ -68,7 +68,7 @@ def leaked(before: dict[str, set[int]], after: dict[str, set[int]]) -> dict[str,
 
 
 def run_contract(cls, scene):
-    """prepare, two measured renders, release, as the runner does; asserts that no GL object
+    """prepare, update, two measured renders, release, as the runner does; asserts that no GL object
     outlives the technique and the frame. Returns (outputs, passes), or (None, None) when the
     technique does not apply to the scene."""
     before = live_gl_names()
@@ -78,6 +78,7 @@ def run_contract(cls, scene):
     try:
         try:
             technique.prepare(frame)
+            technique.update(frame)
         except NotApplicable:
             outputs = None
         else:

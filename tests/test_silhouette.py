@@ -26,6 +26,7 @@ def rendered(scene, **params):
     technique = SilhouetteMap(SilhouetteMap.Params(**params))
     try:
         technique.prepare(frame)
+        technique.update(frame)
         frame.meter.new_frame(measuring=True)
         output = technique.render(frame)
         yield frame, technique, output

@@ -37,6 +37,7 @@ def test_technique_frame_512(benchmark, box_frame, name):
     box_frame.new_meter()
     try:
         technique.prepare(box_frame)
+        technique.update(box_frame)
 
         def one_frame():
             box_frame.meter.new_frame(measuring=False)
