@@ -212,6 +212,7 @@ SceneObject = Annotated[
 
 
 class Scene(Strict):
+    description: str | None = None  # one sentence: what the scene is for (shown, never hashed)
     resolution: tuple[int, int] = (512, 512)
     camera: Camera
     light: Light

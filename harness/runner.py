@@ -28,7 +28,7 @@ from pydantic import ValidationError
 from . import config as cfg
 from . import metrics, registry, results
 from .gl.measure import default_timer
-from .scene import BuiltScene, build_scene
+from .scene import BuiltScene, build_scene, load_scene
 
 
 @dataclass(frozen=True)
@@ -267,6 +267,9 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment": plan.experiment_path,
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
+        "scenes": {name: {"description": scene.config.description,
+                          "effects": list(scene.config.effects)}
+                   for name, scene in plan.scenes.items()},
         "started": invocations[0]["started"],
         "finished": (previous.get("finished") if same and previous.get("finished")
                      else session["finished"] if complete else None),
@@ -353,6 +356,7 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
         ssim=metrics.ssim(v_clean, ref_v, mask=mask),
         psnr=metrics.psnr(v_clean, ref_v, mask=mask),
     )
+    images = {}
     if reference.direct is not None:
         a = frame.arrays
         ambient = frame.scene.config.ambient
@@ -360,9 +364,13 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
                                ambient=ambient)
         shaded_ref = reference.direct + (ambient * a.albedo)[..., None]
         row["flip"] = metrics.flip(shaded, shaded_ref)
+        # grey images (one channel) for the report's viewer; float16 is plenty to look at
+        images["shaded"] = shaded[..., 0].astype(np.float16)
+        images["shaded_reference"] = shaded_ref.mean(-1).astype(np.float16)
     row.update(output.extra)
     row["status"] = "ok"
     arrays = {"visibility": v.astype(np.float32), "covered": frame.arrays.covered,
+              "compared": mask, **images,
               **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
     return row, arrays
 
@@ -518,17 +526,22 @@ class Evaluation:
     mask: np.ndarray  # the pixels every metric compares (Frame.compared_pixels)
 
 
-def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
+def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None, *,
+             scene_file: str | Path = "scenes.yaml", resolution: tuple[int, int] | None = None,
              frames: int = 1, warmup: int = 0, samples: int = 16) -> Evaluation:
     """Run one technique on one scene in this process and score it (for tests, notebooks).
 
-    ``scene`` carries its resolution (``BuiltScene.with_resolution``); the reference comes from
-    the on-disk cache when present.
+    ``scene`` is a built scene or the name of one in ``scene_file``; ``resolution`` (width,
+    height) replaces the scene's own. The reference comes from the on-disk cache when present.
     """
     from .gl.context import get_context
     from .reference import compute_reference
     from .technique import Frame
 
+    if isinstance(scene, str):
+        scene = load_scene(scene, scene_file)
+    if resolution is not None:
+        scene = scene.with_resolution(*resolution)
     context = get_context()
     cls = registry.get(technique)
     checked = validate_params(technique, params or {}, "evaluate()")
