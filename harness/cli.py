@@ -23,7 +23,8 @@ def _csv_list(text: str) -> list[str]:
 
 
 def cmd_list(args) -> int:
-    """Every technique with each parameter's default and allowed values, then the scenes."""
+    """Every technique with each parameter's default and allowed values and its quality knobs
+    (the values its curve walks), then the scenes."""
     import types
     import typing
 
@@ -73,6 +74,8 @@ def cmd_list(args) -> int:
             limits = [text for text in map(limit, field.metadata) if text]
             range_text = ", ".join([allowed(field.annotation)] + limits)
             print(f"      {pname:14s} default {show(default):11s} {range_text}")
+        for knob, values in cls.quality_knobs.items():
+            print(f"      quality knob {knob}: {', '.join(map(show, values))}")
     path = Path(args.scene_file)
     if path.is_file():
         print(f"scenes ({path}):")

@@ -131,7 +131,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
 
     grids: dict[str, list[cfg.Grid]] = {}
     chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
-              else exp.techniques)
+              else {name: cfg.Grid(curve=True) for name in registered}
+              if exp.techniques == "curves" else exp.techniques)
     for name, g in chosen.items():
         if name not in registered:
             raise cfg.key_error(exp_path, node, ("techniques", name),
@@ -159,8 +160,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             for tech, tech_grids in grids.items():
                 version = registered[tech].code_version()
                 for gi, grid in enumerate(tech_grids):
-                    for combo in grid.combinations():
-                        loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    grid_loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
+                                                  node):
                         line = cfg._line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
@@ -177,6 +179,27 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
     return Plan(runs, built, exp_hash, str(exp_path))
+
+
+def grid_points(cls, grid: cfg.Grid, loc: tuple, path: Path, node) -> list[tuple[dict, tuple]]:
+    """A grid's parameter combinations, each with the key path that asks for it. A curve grid
+    gives the technique's quality curve from ``grid.set`` (:func:`quality_settings`), each point
+    named by its knob (``techniques.pcf.curve.k``); a technique that declares no knob runs at
+    ``set`` alone."""
+    from .technique import quality_settings
+
+    if grid.curve is None:
+        return [(combo, loc) for combo in grid.combinations()]
+    declared = cls.quality_knobs
+    knobs = declared if grid.curve is True else grid.curve
+    for knob in knobs:
+        if knob not in declared:
+            raise cfg.key_error(path, node, loc + ("curve", knob),
+                                f"{cls.name} has no quality knob {knob!r}; its knobs: "
+                                f"{', '.join(declared) or 'none'}")
+    if not knobs:
+        return [(dict(grid.set), loc + ("curve",))]
+    return [(params, loc + ("curve", knob)) for knob, params in quality_settings(knobs, grid.set)]
 
 
 def _git_commit() -> str:
