@@ -26,9 +26,8 @@ def caveat(meta: dict, rows) -> str:
 
 def counts(shown, current) -> dict:
     """Runs shown, ok, failed, skipped and noisy (timed with other processes busy)."""
-    timed = current[current["noisy"].map(lambda v: plots.number(v) is not None)] \
-        if "noisy" in current else current.iloc[:0]
-    noisy = int(timed["noisy"].map(lambda v: bool(plots.number(v))).sum()) if len(timed) else 0
+    timed = current[plots.has_number(current, "noisy")]
+    noisy = sum(bool(plots.number(v)) for v in timed["noisy"]) if len(timed) else 0
     return {"runs": len(shown), "ok": int((shown["status"] == "ok").sum()),
             "failed": int((shown["status"] == "error").sum()),
             "skipped": int((shown["status"] == "skipped").sum()),

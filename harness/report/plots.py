@@ -49,10 +49,16 @@ def number(value) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def has_number(rows, column: str) -> np.ndarray:
+    """Per row, whether ``column`` holds a finite number (all False without the column)."""
+    if column not in rows:
+        return np.zeros(len(rows), bool)
+    return np.array([number(v) is not None for v in rows[column]], bool)
+
+
 def axes(rows, names: dict[str, str]) -> dict[str, str]:
     """The axis choices the rows have finite values for, in ``names``' order."""
-    return {c: t for c, t in names.items()
-            if c in rows and rows[c].map(lambda v: number(v) is not None).any()}
+    return {c: t for c, t in names.items() if has_number(rows, c).any()}
 
 
 def size_label(width, height) -> str:
@@ -95,16 +101,14 @@ def run_values(row) -> dict:
 def theta(current, technique_colours: dict[str, str]) -> dict | None:
     """Alias and edge error against theta_deg per technique (and setting), one facet per metric,
     when the current runs span at least THETA_PLOT_MIN_ANGLES angles; else None."""
-    if "theta_deg" not in current:
-        return None
-    rows = current[current["theta_deg"].map(lambda v: number(v) is not None)]
-    if rows["theta_deg"].round(6).nunique() < THETA_PLOT_MIN_ANGLES:
+    rows = current[has_number(current, "theta_deg")]
+    if rows.empty or rows["theta_deg"].round(6).nunique() < THETA_PLOT_MIN_ANGLES:
         return None
     labels = analysis.setting_labels(rows)
     facets = []
     for metric in [m for m in ("alias_mean", "alias_near", "edge_mae") if m in rows]:
         series = []
-        have = rows[rows[metric].map(lambda v: number(v) is not None)]
+        have = rows[has_number(rows, metric)]
         for (technique, w, h, setting), g in have.assign(_setting=labels).groupby(
                 ["technique", "width", "height", "_setting"], sort=True):
             g = g.sort_values("theta_deg")
@@ -136,8 +140,3 @@ def series_chart(plot: dict) -> dict:
     return {"facets": [{"title": "", "series": series}],
             "x": {"title": plot["x_title"], "log": bool(plot.get("log_x"))},
             "y": {"title": plot["y_title"], "log": bool(plot.get("log_y"))}}
-
-
-def finite_range(values) -> tuple[float, float] | None:
-    finite = [v for v in values if v is not None and np.isfinite(v)]
-    return (min(finite), max(finite)) if finite else None
