@@ -128,9 +128,9 @@ def crop(values: np.ndarray, window: tuple[int, int, int]) -> np.ndarray:
     return values[r:r + size, c:c + size]
 
 
-def shrink_factor(width: int, height: int, px: int = SHOWN_PX) -> int:
-    """The whole factor that brings an image's longer side to ``px`` or below."""
-    return max(1, -(-max(width, height) // px))
+def shrink_factor(width: int, height: int, px: int | None = None) -> int:
+    """The whole factor that brings an image's longer side to ``px`` (SHOWN_PX) or below."""
+    return max(1, -(-max(width, height) // (px or SHOWN_PX)))
 
 
 def _blocks(values: np.ndarray, f: int) -> np.ndarray:
@@ -142,9 +142,9 @@ def _blocks(values: np.ndarray, f: int) -> np.ndarray:
     return padded.reshape(sh, f, sw, f).transpose(0, 2, 1, 3).reshape(sh, sw, f * f)
 
 
-def shrink_mean(values: np.ndarray, px: int = SHOWN_PX) -> np.ndarray:
-    """Down to ``px`` by averaging each block's values (a fractional V stays fractional); NaN
-    where a block has none."""
+def shrink_mean(values: np.ndarray, px: int | None = None) -> np.ndarray:
+    """Down to ``px`` (SHOWN_PX) by averaging each block's values (a fractional V stays
+    fractional); NaN where a block has none."""
     f = shrink_factor(values.shape[1], values.shape[0], px)
     if f == 1:
         return values
@@ -154,9 +154,9 @@ def shrink_mean(values: np.ndarray, px: int = SHOWN_PX) -> np.ndarray:
     return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
-def shrink_error(d: np.ndarray, px: int = SHOWN_PX) -> np.ndarray:
-    """Signed error down to ``px`` keeping each block's largest |error|, so a one-pixel error
-    of a 1024-pixel image still shows as one pixel at 256."""
+def shrink_error(d: np.ndarray, px: int | None = None) -> np.ndarray:
+    """Signed error down to ``px`` (SHOWN_PX) keeping each block's largest |error|, so a
+    one-pixel error of a 1024-pixel image still shows as one pixel at 256."""
     f = shrink_factor(d.shape[1], d.shape[0], px)
     if f == 1:
         return d
