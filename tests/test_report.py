@@ -265,3 +265,55 @@ def test_a_techniques_own_maps_are_shown(built, run_dir):
     assert maps and maps[0]["name"] == "pixels_per_texel_log2"
     finite = texel_map[np.isfinite(texel_map)]
     assert min(m["lo"] for m in maps) >= finite.min() - 1e-6
+
+
+# --- what the page is built from ----------------------------------------------------------------
+
+def test_theta_plot_appears_with_three_angles():
+    """alias_mean and edge_mae against theta per technique, joined in angle order, only when the
+    runs span three angles or more. Catches a plot drawn from two angles or joined unsorted."""
+    from harness.report import plots
+
+    rows = pd.DataFrame({
+        "scene": ["a", "b", "c", "a"], "technique": ["psm"] * 3 + ["sm"], "width": [64] * 4,
+        "height": [64] * 4, "params": [{"res": 512}] * 4, "theta_deg": [60.0, 20.0, 40.0, 60.0],
+        "alias_mean": [1.5, 3.0, 2.0, np.nan], "edge_mae": [0.1, 0.3, 0.2, 0.05]})
+    spec = plots.theta(rows, {"psm": "#111", "sm": "#222"})
+    alias = next(f for f in spec["facets"] if f["title"] == "alias_mean")
+    assert [(p["x"], p["y"]) for p in alias["series"][0]["points"]] == [
+        (20.0, 3.0), (40.0, 2.0), (60.0, 1.5)]
+    assert plots.theta(rows[rows["scene"] != "c"], {"psm": "#111", "sm": "#222"}) is None
+
+
+def test_noisy_runs_are_counted_and_warned_of_beyond_five_percent():
+    """Catches a warning that never fires (or always does) and noisy counted among untimed."""
+    from harness.report import overview
+
+    def counts(noisy):
+        rows = pd.DataFrame({"status": ["ok"] * len(noisy), "noisy": noisy})
+        return overview.counts(rows, rows)
+
+    assert counts([1, 0] + [0] * 18) == {**counts([1, 0] + [0] * 18), "noisy": 1, "timed": 20,
+                                         "noisy_warning": False}
+    assert counts([1, 1] + [0] * 18)["noisy_warning"]
+    assert counts([np.nan] * 5)["timed"] == 0
+
+
+def test_rewording_a_description_keeps_the_scene_key(shipped_scenes):
+    """The description is prose: references and run ids must not change with it. Catches a
+    scene key that hashes every field."""
+    from harness.scene import scene_key
+
+    scene = shipped_scenes["box_plane"]
+    reworded = scene.model_copy(update={"description": "something else"})
+    moved = scene.model_copy(update={"ambient": 0.3})
+    assert scene_key(reworded) == scene_key(scene) != scene_key(moved)
+
+
+def test_evaluate_takes_a_scene_name_and_a_scene_file(gl_context):
+    """``evaluate("box_plane", ...)`` failed with AttributeError on a str."""
+    from harness.runner import evaluate
+
+    result = evaluate("box_plane", "sm", scene_file=ROOT / "scenes.yaml", resolution=(48, 32),
+                      samples=4)
+    assert result.row["status"] == "ok" and result.visibility.shape == (32, 48)
