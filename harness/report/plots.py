@@ -113,7 +113,7 @@ def theta(current, technique_colours: dict[str, str]) -> dict | None:
                 ["technique", "width", "height", "_setting"], sort=True):
             g = g.sort_values("theta_deg")
             name = " ".join(filter(None, [technique, size_label(w, h), setting]))
-            series.append({"name": name, "colour": technique_colours[technique],
+            series.append({"name": name, "group": technique, "colour": technique_colours[technique],
                            "points": [{"x": float(t), "y": float(v),
                                        "tip": f"{name}\nscene {s}\ntheta {t:.3g}°\n{metric} {v:.4g}"}
                                       for t, v, s in zip(g["theta_deg"], g[metric], g["scene"])]})
@@ -121,9 +121,11 @@ def theta(current, technique_colours: dict[str, str]) -> dict | None:
             facets.append({"title": metric, "series": series})
     if not facets:
         return None
-    return {"facets": facets, "x": {"title": "theta: angle between view and light (degrees)",
-                                    "log": False},
-            "y": {"title": "alias (pixels per texel), edge_mae", "log": bool(
+    techniques = sorted({s["group"] for f in facets for s in f["series"]})
+    return {"facets": facets, "legend": [{"name": t, "colour": technique_colours[t]}
+                                         for t in techniques],
+            "x": {"title": "theta: angle between view and light (degrees)", "log": False},
+            "y": {"title": "alias (pixels per texel), edge_mae", "shared": False, "log": bool(
                   all(p["y"] > 0 for f in facets for s in f["series"] for p in s["points"]))}}
 
 

@@ -59,8 +59,9 @@ const Charts = (() => {
   }
 
   // spec: {facets: [{title, series: [{name, group, colour, dash, markers, points: [{x, y,
-  //        label, tip, run}]}], front: [{x, y}]}], x: {title, log}, y: {title, log},
-  //        onclick(run)}; hidden: a Set of series groups not drawn.
+  //        label, tip, run}]}], front: [{x, y}]}], x: {title, log}, y: {title, log, shared},
+  //        onclick(run)}; hidden: a Set of series groups not drawn. The panels share both
+  //        axes unless y.shared is false.
   function draw(parent, spec, hidden) {
     parent.textContent = "";
     hidden = hidden || new Set();
@@ -80,7 +81,8 @@ const Charts = (() => {
       parent.appendChild(none);
       return;
     }
-    const ax = axis(xs, logX), ay = axis(ys, logY);
+    const ax = axis(xs, logX);
+    let ay = axis(ys, logY);
     const tip = document.createElement("div");
     tip.className = "chart-tip";
     const row = document.createElement("div");
@@ -90,6 +92,10 @@ const Charts = (() => {
     const iw = w - SIZE.left - SIZE.right, ih = SIZE.height - SIZE.top - SIZE.bottom;
     const px = x => SIZE.left + ax.at(x) * iw, py = y => SIZE.top + (1 - ay.at(y)) * ih;
     for (const facet of spec.facets) {
+      if (spec.y.shared === false) {  // each panel its own metric: its own y range
+        const own = shown(facet).flatMap(s => s.points.map(p => p.y));
+        if (own.length) ay = axis(own, logY);
+      }
       const svg = el("svg", {width: w, height: SIZE.height, class: "chart",
                              viewBox: `0 0 ${w} ${SIZE.height}`}, row);
       el("text", {x: SIZE.left + iw / 2, y: 14, "text-anchor": "middle", class: "facet-title"},

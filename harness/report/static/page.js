@@ -22,8 +22,14 @@
   }
 
   function staticChart(box) {
-    const spec = box.parentNode.querySelector(`script.chart-spec[data-for="${box.id}"]`);
-    if (spec) Charts.draw(box, JSON.parse(spec.textContent));
+    const script = box.parentNode.querySelector(`script.chart-spec[data-for="${box.id}"]`);
+    if (!script) return;
+    const spec = JSON.parse(script.textContent), hidden = new Set();
+    const chart = document.createElement("div");
+    box.append(document.createElement("div"), chart);
+    const redraw = () => Charts.draw(chart, spec, hidden);
+    if (spec.legend) Charts.legend(box.firstChild, spec.legend, hidden, redraw);
+    redraw();
   }
 
   // --- the overview's summary tables: one per (cost, error), chosen by two selects ---------
@@ -102,7 +108,7 @@
     const slot = name => box.querySelector(`figure[data-slot="${name}"]`);
     const under = box.querySelector(".compare-stack .under"), over = box.querySelector(".compare-stack .over");
     const slider = box.querySelector(".compare-slider");
-    let flicker = null, current = null;
+    let flicker = null;
     const wipe = () => { over.style.clipPath = `inset(0 ${100 - slider.value}% 0 0)`; };
     slider.addEventListener("input", wipe);
     box.querySelector(".flicker").addEventListener("click", e => {
@@ -123,7 +129,6 @@
 
     function select(i, scroll = true) {
       const run = data.runs[i];
-      current = i;
       for (const tr of section.querySelectorAll("tr[data-run]")) tr.classList.toggle("selected", Number(tr.dataset.run) === i);
       const title = `${run.technique} ${run.size}${run.setting ? " · " + run.setting : ""}`;
       box.querySelector(".viewer-title").textContent = title + (run.images ? ` — edge_mae ${fmt(run.values.edge_mae)}, wrong_pct ${fmt(run.values.wrong_pct)} %, time ${fmt(run.values.time_ms)} ms` : "");
@@ -162,7 +167,7 @@
       }
       if (scroll) box.scrollIntoView({block: "nearest"});
     }
-    return {select, get current() { return current; }};
+    return {select};
   }
 
   // --- native size ----------------------------------------------------------------------------
