@@ -31,7 +31,7 @@ from . import config as cfg
 from . import cost_model, metrics, registry, results
 from .gl import measure as pass_measure
 from .gl.measure import COUNTERS, default_timer
-from .scene import BuiltScene, build_scene
+from .scene import BuiltScene, build_scene, load_scene
 from .timing import CONFIDENCE, NOISY_CONTENTION, cpu_sample, median_interval, others_time
 
 
@@ -141,7 +141,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
 
     grids: dict[str, list[cfg.Grid]] = {}
     chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
-              else exp.techniques)
+              else {name: cfg.Grid(curve=True) for name in registered}
+              if exp.techniques == "curves" else exp.techniques)
     for name, g in chosen.items():
         if name not in registered:
             raise cfg.key_error(exp_path, node, ("techniques", name),
@@ -169,8 +170,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             for tech, tech_grids in grids.items():
                 version = registered[tech].code_version()
                 for gi, grid in enumerate(tech_grids):
-                    for combo in grid.combinations():
-                        loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    grid_loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
+                                                  node):
                         line = cfg._line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
@@ -189,6 +191,27 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
     return Plan(runs, built, exp_hash, str(exp_path))
+
+
+def grid_points(cls, grid: cfg.Grid, loc: tuple, path: Path, node) -> list[tuple[dict, tuple]]:
+    """A grid's parameter combinations, each with the key path that asks for it. A curve grid
+    gives the technique's quality curve from ``grid.set`` (:func:`quality_settings`), each point
+    named by its knob (``techniques.pcf.curve.k``); a technique that declares no knob runs at
+    ``set`` alone."""
+    from .technique import quality_settings
+
+    if grid.curve is None:
+        return [(combo, loc) for combo in grid.combinations()]
+    declared = cls.quality_knobs
+    knobs = declared if grid.curve is True else grid.curve
+    for knob in knobs:
+        if knob not in declared:
+            raise cfg.key_error(path, node, loc + ("curve", knob),
+                                f"{cls.name} has no quality knob {knob!r}; its knobs: "
+                                f"{', '.join(declared) or 'none'}")
+    if not knobs:
+        return [(dict(grid.set), loc + ("curve",))]
+    return [(params, loc + ("curve", knob)) for knob, params in quality_settings(knobs, grid.set)]
 
 
 def _git_commit() -> str:
@@ -286,6 +309,9 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment": plan.experiment_path,
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
+        "scenes": {name: {"description": scene.config.description,
+                          "effects": list(scene.config.effects)}
+                   for name, scene in plan.scenes.items()},
         "started": invocations[0]["started"],
         "finished": (previous.get("finished") if same and previous.get("finished")
                      else session["finished"] if complete else None),
@@ -547,8 +573,9 @@ class _Truth:
         self.band = metrics.edge_band(self.visibility, mask=self.mask)
 
 
-def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> dict:
-    """The error metrics of one frame's V against its reference on the compared pixels."""
+def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> tuple[dict, dict]:
+    """The error metrics of one frame's V against its reference on the compared pixels, and
+    the shaded images where the scene asks for shading."""
     v, ref_v, mask, band = v_clean.astype(np.float64), truth.visibility, truth.mask, truth.band
     columns = dict(
         mae=metrics.mae(v, ref_v, mask=mask),
@@ -559,7 +586,7 @@ def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> dict:
         ssim=metrics.ssim(v, ref_v, mask=mask),
         psnr=metrics.psnr(v, ref_v, mask=mask),
     )
-    reference = truth.reference
+    reference, images = truth.reference, {}
     if reference.direct is not None:
         a = frame.arrays
         ambient = frame.scene.config.ambient
@@ -567,12 +594,17 @@ def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> dict:
                                ambient=ambient)
         shaded_ref = reference.direct + (ambient * a.albedo)[..., None]
         columns["flip"] = metrics.flip(shaded, shaded_ref)
-    return columns
+        # grey images (one channel) for the report's viewer; float16 is plenty to look at
+        images["shaded"] = shaded[..., 0].astype(np.float16)
+        images["shaded_reference"] = shaded_ref.mean(-1).astype(np.float16)
+    return columns, images
 
 
-def _frame_arrays(output, frame) -> dict[str, np.ndarray]:
-    """V, coverage and the technique's diagnostic maps of one frame, as a run stores them."""
+def _frame_arrays(output, frame, truth: _Truth, images: dict) -> dict[str, np.ndarray]:
+    """V, coverage, the compared pixels, the shaded images and the technique's diagnostic maps
+    of one frame, as a run stores them."""
     return {"visibility": output.visibility.astype(np.float32), "covered": frame.arrays.covered,
+            "compared": truth.mask, **images,
             **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
 
 
@@ -581,10 +613,11 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
     row, output = timed.row, timed.output
     row.update(_cost_columns(timed, frame))
     truth = _Truth(0, reference, frame.compared_pixels(reference.covered))
-    row.update(_metric_columns(_clean(output.visibility), frame, truth))
+    columns, images = _metric_columns(_clean(output.visibility), frame, truth)
+    row.update(columns)
     row.update(output.extra)
     row["status"] = "ok"
-    return row, _frame_arrays(output, frame)
+    return row, _frame_arrays(output, frame, truth, images)
 
 
 # --- moving scenes ----------------------------------------------------------------------------
@@ -624,7 +657,7 @@ def _observe(timed: _Timed, frame, truth: _Truth, previous: _Truth | None) -> No
     output, t = timed.output, truth.index
     v = _clean(output.visibility)
     ref_v = truth.reference.visibility
-    columns = _metric_columns(v, frame, truth)
+    columns, images = _metric_columns(v, frame, truth)
     for name, value in columns.items():
         sequence.add(name, value)
     flicker = (math.nan if previous is None else
@@ -639,7 +672,7 @@ def _observe(timed: _Timed, frame, truth: _Truth, previous: _Truth | None) -> No
         sequence.v_range = (min(low, float(np.nanmin(output.visibility))),
                             max(high, float(np.nanmax(output.visibility))))
     if t == 0:
-        sequence.first = _frame_arrays(output, frame)
+        sequence.first = _frame_arrays(output, frame, truth, images)
     # the worst frame: the largest flicker (a pop), the largest mae among equals
     key = (0.0 if math.isnan(flicker) else flicker,
            -math.inf if math.isnan(columns["mae"]) else columns["mae"])
@@ -902,18 +935,24 @@ class Evaluation:
     arrays: dict | None = None  # what the run stores (a moving scene's series among them)
 
 
-def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
+def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None, *,
+             scene_file: str | Path = "scenes.yaml", resolution: tuple[int, int] | None = None,
              frames: int = 1, warmup: int = 0, samples: int = 16) -> Evaluation:
     """Run one technique on one scene in this process and score it (for tests, notebooks).
 
-    ``scene`` carries its resolution (``BuiltScene.with_resolution``); the reference comes from
-    the on-disk cache when present. A moving scene runs its whole sequence (``frames`` is then
-    its length); ``visibility``, ``reference``, ``frame_arrays`` and ``mask`` are frame 0's.
+    ``scene`` is a built scene or the name of one in ``scene_file``; ``resolution`` (width,
+    height) replaces the scene's own. The reference comes from the on-disk cache when present.
+    A moving scene runs its whole sequence (``frames`` is then its length); ``visibility``,
+    ``reference``, ``frame_arrays`` and ``mask`` are frame 0's.
     """
     from .gl.context import get_context
     from .reference import compute_reference
     from .technique import Frame
 
+    if isinstance(scene, str):
+        scene = load_scene(scene, scene_file)
+    if resolution is not None:
+        scene = scene.with_resolution(*resolution)
     context = get_context()
     cls = registry.get(technique)
     checked = validate_params(technique, params or {}, "evaluate()")

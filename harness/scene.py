@@ -208,11 +208,12 @@ def _light(light) -> Light:
 
 
 def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
-    """Hash of the scene description, including the bytes of any mesh files it loads. A still
-    scene hashes as it did before scenes could move (no ``motion`` key)."""
-    description = scene.model_dump(mode="json", exclude={"motion"} if scene.motion is None
-                                   else None)
-    h = hashlib.sha256(json.dumps(description, sort_keys=True).encode())
+    """Hash of the scene's geometry, light, camera and motion, including the bytes of any mesh
+    files it loads; its ``description`` is prose and stays out, so rewording it keeps references
+    and run ids. A still scene hashes as it did before scenes could move (no ``motion`` key)."""
+    geometry = scene.model_dump(mode="json", exclude={"description"} | (
+        {"motion"} if scene.motion is None else set()))
+    h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):
             h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())
