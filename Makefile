@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup test bench report compare microbench microbench-compare reproduce lint clean
+.PHONY: setup test bench report motion compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -42,6 +42,17 @@ bench: setup
 
 report: setup
 	$(VENV)/bin/shadowbench report $(OUT)
+
+# Shadows in motion (experiments/motion.yaml): every technique along camera and light orbits,
+# scored per frame (flicker, worst frame) -> $(MOTION_OUT)/index.html, with its wall time.
+MOTION_OUT ?= results/motion
+
+motion: setup
+	@start=$$(date +%s); \
+	$(VENV)/bin/shadowbench run experiments/motion.yaml --out $(MOTION_OUT); status=$$?; \
+	if [ $$status -le 1 ]; then $(VENV)/bin/shadowbench report $(MOTION_OUT) || exit $$?; fi; \
+	echo "make motion: $$(( $$(date +%s) - start )) s wall time"; \
+	exit $$status
 
 # Timings saved as JSON under .benchmarks/<machine>/; compare checks a new run against the last
 # saved one without replacing it.

@@ -639,10 +639,11 @@ class _Sequence:
     extras: dict[str, list] = field(default_factory=dict)  # the technique's columns per frame
     previous: np.ndarray | None = None
     first: dict | None = None  # frame 0's arrays
-    recent: list = field(default_factory=list)  # (t, V, V_ref) of the last STRIP_RADIUS frames
+    # (t, V, V_ref, coverage) of the last STRIP_RADIUS frames
+    recent: list = field(default_factory=list)
     worst_key: tuple = (-math.inf, -math.inf)
     worst: dict | None = None
-    strip: list = field(default_factory=list)  # (t, V, V_ref) around the worst frame
+    strip: list = field(default_factory=list)  # (t, V, V_ref, coverage) around the worst frame
     strip_wanted: int = 0  # frames after the worst still to join the strip
     nonfinite: int = 0
     v_range: tuple = (math.inf, -math.inf)
@@ -654,7 +655,7 @@ class _Sequence:
 def _observe(timed: _Timed, frame, truth: _Truth, previous: _Truth | None) -> None:
     """Score frame ``truth.index`` of a run on a moving scene into its :class:`_Sequence`."""
     sequence = timed.sequence = timed.sequence or _Sequence()
-    output, t = timed.output, truth.index
+    output, t, covered = timed.output, truth.index, frame.arrays.covered
     v = _clean(output.visibility)
     ref_v = truth.reference.visibility
     columns, images = _metric_columns(v, frame, truth)
@@ -680,13 +681,13 @@ def _observe(timed: _Timed, frame, truth: _Truth, previous: _Truth | None) -> No
         sequence.worst_key = key
         error = np.where(truth.mask, np.abs(v - ref_v), np.nan).astype(np.float32)
         sequence.worst = dict(worst_frame=np.int64(t), worst_visibility=v.astype(np.float32),
-                              worst_reference=ref_v, worst_error=error)
-        sequence.strip = sequence.recent + [(t, v, ref_v)]
+                              worst_reference=ref_v, worst_error=error, worst_covered=covered)
+        sequence.strip = sequence.recent + [(t, v, ref_v, covered)]
         sequence.strip_wanted = STRIP_RADIUS
     elif sequence.strip_wanted:
-        sequence.strip.append((t, v, ref_v))
+        sequence.strip.append((t, v, ref_v, covered))
         sequence.strip_wanted -= 1
-    sequence.recent = (sequence.recent + [(t, v, ref_v)])[-STRIP_RADIUS:]
+    sequence.recent = (sequence.recent + [(t, v, ref_v, covered)])[-STRIP_RADIUS:]
     sequence.previous = v
 
 
@@ -710,21 +711,22 @@ def _sequence_score(timed: _Timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
     row.update(pop_frames=metrics.pop_frames(flicker[1:]),
                worst_frame=int(sequence.worst["worst_frame"]), nonfinite=sequence.nonfinite,
                v_min=sequence.v_range[0], v_max=sequence.v_range[1])
-    for name, values in sequence.extras.items():
-        numeric = all(isinstance(x, (int, float, np.number)) and not isinstance(x, str)
-                      for x in values)
-        row[name] = float(np.mean(values)) if numeric else values[-1]
-        if numeric:
+    for name, values in sequence.extras.items():  # the technique's columns
+        if all(isinstance(x, (int, float, np.number)) for x in values):  # bools count too
             series[f"extra_{name}"] = np.asarray(values, np.float64)
+            row[name] = float(np.mean(series[f"extra_{name}"]))
+        else:
+            row[name] = values[-1]
     row["status"] = "ok"
-    strip_frames, strip_v, strip_ref = zip(*sequence.strip)
+    strip_frames, strip_v, strip_ref, strip_covered = zip(*sequence.strip)
     arrays = {**sequence.first, **sequence.worst,
               **{f"series_{name}": values for name, values in series.items()},
               "series_flicker": flicker,
               "series_frame_ms": np.asarray(timed.meter.frame_totals_ms, np.float64),
               "strip_frames": np.asarray(strip_frames, np.int64),
               "strip_visibility": np.stack(strip_v).astype(np.float32),
-              "strip_reference": np.stack(strip_ref).astype(np.float32)}
+              "strip_reference": np.stack(strip_ref).astype(np.float32),
+              "strip_covered": np.stack(strip_covered)}
     return row, arrays
 
 

@@ -26,10 +26,11 @@ ERRORS = {
     "wrong_pct": "wrong_pct: % of compared pixels more than 0.5 off",
     "mae": "mae: mean |V − V_ref| over the compared pixels",
     "flip": "FLIP of the shaded image against the reference (0 to 1)",
+    "flicker": "flicker: mean |ΔV − ΔV_ref| between frames (moving scenes)",
 }
 # values shown in a point's hover besides the axes
 HOVER = ["time_ms", "gpu_estimate_ms", "edge_mae", "edge_ratio", "wrong_pct", "mae", "flip",
-         "acne_pct", "leak_pct"]
+         "acne_pct", "leak_pct", "flicker", "pop_frames"]
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf"]
 THETA_PLOT_MIN_ANGLES = 3

@@ -10,6 +10,7 @@ import pandas as pd
 
 from .. import analysis
 from . import plots
+from .motion import motion_part
 from .viewer import SceneImages
 
 # the run table's columns where the results have them: column -> (heading, digits)
@@ -20,6 +21,8 @@ RUN_COLUMNS = {
     "wrong_pct": ("wrong %", 3), "mae": ("mae", 3), "flip": ("flip", 3), "levels": ("levels", 3),
     "mem_bytes": ("memory B", 3), "fetches_per_px": ("fetches/px", 3),
     "overdraw": ("overdraw", 3), "frags_shadow": ("shadow frags", 3),
+    "flicker": ("flicker", 3), "flicker_max": ("flicker max", 3), "pop_frames": ("pops", 3),
+    "mae_max": ("mae worst frame", 3),
     "vertex_invocations": ("vertex inv.", 3), "fragment_invocations": ("fragment inv.", 3),
     "primitives": ("primitives", 3),
 }
@@ -75,6 +78,7 @@ def scene_section(images: SceneImages, shown, current, cheapest, budgets,
         "budgets": budget_table(budgets, sizes),
         "references": references,
         "thumbnail": images.thumbnail(),
+        "motion": motion_part(images.folder, shown, colours),
     }
 
 

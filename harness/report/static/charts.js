@@ -59,7 +59,8 @@ const Charts = (() => {
   }
 
   // spec: {facets: [{title, series: [{name, group, colour, dash, markers, points: [{x, y,
-  //        label, tip, run}]}], front: [{x, y}]}], x: {title, log}, y: {title, log, shared},
+  //        label, tip, run, r (radius, default 4.5)}]}], front: [{x, y}]}], x: {title, log},
+  //        y: {title, log, shared},
   //        onclick(run)}; hidden: a Set of series groups not drawn. The panels share both
   //        axes unless y.shared is false.
   function draw(parent, spec, hidden) {
@@ -127,7 +128,7 @@ const Charts = (() => {
         }
         for (const p of s.points) {
           if (s.markers !== false) {
-            const dot = el("circle", {cx: px(p.x), cy: py(p.y), r: 4.5, fill: s.colour,
+            const dot = el("circle", {cx: px(p.x), cy: py(p.y), r: p.r || 4.5, fill: s.colour,
                                       class: "point" + (p.run !== undefined ? " link" : "")}, g);
             dot.addEventListener("mousemove", e => {
               tip.textContent = p.tip;

@@ -55,7 +55,8 @@
     if (run.noisy) time += " noisy";
     lines.push(time);
     if (v.gpu_estimate_ms !== null) lines.push(`estimated GPU time ${fmt(v.gpu_estimate_ms)} ms`);
-    const errors = ["edge_mae", "edge_ratio", "wrong_pct", "mae", "flip", "acne_pct", "leak_pct"]
+    const errors = ["edge_mae", "edge_ratio", "wrong_pct", "mae", "flip", "acne_pct", "leak_pct",
+                    "flicker", "pop_frames"]
       .filter(k => v[k] !== null).map(k => `${k} ${fmt(v[k])}${k.endsWith("_pct") ? " %" : ""}`);
     for (let i = 0; i < errors.length; i += 3) lines.push(errors.slice(i, i + 3).join(" · "));
     if (run.params) lines.push(run.params);
@@ -86,13 +87,24 @@
     if (first) viewer.select(first.i, false);
   }
 
+  // On a moving scene a point's area grows with its flicker (the third axis): the scene's
+  // steadiest run at the smallest size, its most flickering at 4x the area of a still run's.
+  function flickerRadius(data) {
+    const values = data.runs.map(r => r.values.flicker).filter(v => v !== null);
+    const top = Math.max(0, ...values);
+    return run => (run.values.flicker === null || !(top > 0)) ? undefined
+      : 3 + 6 * Math.sqrt(run.values.flicker / top);
+  }
+
   function costAccuracySpec(data, cost, error, onclick) {
     const view = data.plot.views[`${cost}|${error}`] || {lines: [], front: []};
+    const radius = flickerRadius(data);
     const facets = data.plot.sizes.map(size => {
       const series = view.lines.filter(l => l.size === size).map(line => ({
         name: line.name, group: line.technique, colour: data.colours[line.technique],
         points: line.runs.map((i, k) => ({x: data.runs[i].values[cost], y: data.runs[i].values[error],
-                                           label: line.labels[k], tip: tipText(data.runs[i]), run: i}))
+                                           label: line.labels[k], tip: tipText(data.runs[i]), run: i,
+                                           r: radius(data.runs[i])}))
           .filter(p => p.x !== null && p.y !== null)}));
       const front = view.front.map(i => data.runs[i]).filter(r => r.size === size)
         .map(r => ({x: r.values[cost], y: r.values[error]}));
