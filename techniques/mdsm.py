@@ -83,12 +83,13 @@ class MultipleDepthShadowMap(Technique):
     counting definition here is what the text around it and the 2-SM decision tree (Figure 4:
     0, 0.5, 1) describe.
 
-    Bias: every depth read gets ``bias`` (scene units) plus ``slope_bias`` times the
-    receiver-plane depth change from the point to the texel the depth came from
-    (``shadow_map.glsl``: Isidoro 2006, Schueler 2006). A selected depth may come from any
-    texel of the cell's window, so for n > 1 the term is taken at the window texel where it is
-    largest: the sample's offset plus the window radius ((sqrt(q) - 1) / 2 texels each way,
-    one more to the right and top for even windows). For n = 1 it is pcf's and sm's term.
+    Bias: every depth read gets ``bias`` (scene units) plus ``slope_bias`` times the receiver
+    plane's depth slope per texel times the distance in texels from the point to the texel the
+    depth came from (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and Schueler
+    2006). A selected depth may come from any texel of the cell's window, so for n > 1 the
+    distance is to the window's farthest texel: the sample's offset plus the window radius
+    ((sqrt(q) - 1) / 2 texels each way, one more to the right and top for even windows). For
+    n = 1 it is pcf's and sm's term.
 
     Empty map cells hold the clear depth 3e38 (lit); representatives are picked, never averaged,
     so no depth overflows. Extra result columns: ``select_fetches`` (q x res^2, 0 for n = 1),
@@ -105,8 +106,9 @@ class MultipleDepthShadowMap(Technique):
     ``select``         ``minmax`` (n <= 3) or ``sort``                   minmax
     ``extra``          n = 2 with minmax only: ``max`` or ``min``        max      max, min
     ``bias``           constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``     times the receiver-plane depth change to the      1.0      >= 0
-                       farthest texel a depth may come from
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+                       distance to the farthest texel a depth may come
+                       from
     =================  ================================================  =======  ================
     """
 

@@ -32,9 +32,10 @@ class PercentageCloserFiltering(Technique):
     regular kernel MDSM's paper compares with).
 
     Bias: each sample draws a constant from [``bias_min``, ``bias_max``] (the paper's Bias0,
-    Bias1, scene units), plus ``slope_bias`` times the receiver-plane depth change from the
-    point to the centre of the texel the sample reads (``shadow_map.glsl``: Isidoro 2006,
-    Schueler 2006): samples far out in a large region get the bias their distance needs,
+    Bias1, scene units), plus ``slope_bias`` times the receiver plane's depth slope per texel
+    times the distance in texels from the point to the centre of the texel the sample reads
+    (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006): samples far out in a large
+    region get the bias their distance needs,
     which one constant cannot give for every region, scene size and map size (Reeves et al.
     tune Bias per scene). Points behind the light or outside the map count as lit.
 
@@ -51,8 +52,8 @@ class PercentageCloserFiltering(Technique):
                     (MinSize)
     ``bias_min``    smallest per-sample bias, scene units (Bias0)    0.02       >= 0
     ``bias_max``    largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
-    ``slope_bias``  times the receiver-plane depth change to each    1.0        >= 0
-                    sample's texel
+    ``slope_bias``  times the receiver plane's depth slope x each    1.0        >= 0
+                    sample's distance to its texel, texels
     ``seed``        seed of the jitter and bias draws                0          >= 0
     ==============  ===============================================  =========  ===========
     """

@@ -9,8 +9,8 @@
 // - fixed region: grid_n x grid_n sub-regions of side `spacing` texels, sampled at their
 //   centres or jittered inside them.
 // A constant bias is drawn per sample from [bias_min, bias_max] (the paper's Figure 4), plus
-// the receiver-plane term of shadow_map.glsl for the texel the sample reads (widened by
-// [window_low, window_high] texels where a map texel holds depths chosen from a window).
+// the slope term of shadow_map.glsl for the texel the sample reads (to the farthest texel of
+// [window_low, window_high] where a map texel holds depths chosen from a window).
 // The including shader defines sample_test(): the per-sample outcome in [0, 1], 1 = lit.
 #include "gbuffer_read.glsl"
 #include "shadow_map.glsl"

@@ -43,7 +43,7 @@ class LightDepthMap:
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame,
                         texture: Texture | None = None) -> dict:
         """Uniforms of shadow_map.glsl, with the map bound to texture ``unit``; ``slope_bias``
-        scales its receiver-plane bias term.
+        scales its slope term (receiver plane's slope x each read's distance).
 
         ``texture`` replaces the depth map by another res x res texture on the same frustum
         (e.g. one holding several depths per cell)."""
@@ -71,7 +71,7 @@ class Sampling:
     seed: int = 0
     bias_min: float = 0.0  # constant bias drawn per sample, scene units
     bias_max: float = 0.0
-    slope_bias: float = 1.0  # times the receiver-plane term
+    slope_bias: float = 1.0  # times the receiver plane's slope x each read's distance
     window: tuple[int, int] = (0, 0)  # a texel's depths come from offsets window[0]..window[1]
 
 

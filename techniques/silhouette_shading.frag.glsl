@@ -57,8 +57,8 @@ void main() {
     if (!r.in_front) { visibility = 1.0; return; }
     vec2 u = r.texel - 0.5;   // silhouette-map coordinates
     vec2 cell = floor(u);
-    // the corner samples lie up to a texel from the point in each axis: each gets the
-    // receiver-plane bias of its own distance (shadow_map.glsl)
+    // the corner samples lie up to a texel from the point in each axis: each gets the slope
+    // bias of its own distance (shadow_map.glsl)
     float corner[4] = float[4](receiver_test(r, cell + vec2(0.5, 0.5), bias),
                                receiver_test(r, cell + vec2(1.5, 0.5), bias),
                                receiver_test(r, cell + vec2(0.5, 1.5), bias),

@@ -15,17 +15,18 @@ class ShadowMap(Technique):
     Orthographic map fitted to the scene bounds for a directional light, perspective over the
     cone for a spot light. Map depths are linear light-space distances, so ``bias`` is in
     scene units. The comparison reads the centre of the point's texel, up to half a texel
-    away from the point in each axis; ``slope_bias`` scales the receiver-plane bias for that
-    distance (``shadow_map.glsl``: the receiver plane's depth change from the point to the
-    texel centre, Isidoro 2006, Schueler 2006), the rule every map technique here shares.
+    away from the point in each axis; the bias is ``bias`` plus ``slope_bias`` times the
+    receiver plane's depth slope per texel times that distance (``shadow_map.glsl``, after the
+    receiver plane of Isidoro 2006 and Schueler 2006), the rule every map technique here
+    shares.
 
     ==============  ================================================  =======  ===========
     Parameter       Meaning                                           Default  Range
     ==============  ================================================  =======  ===========
     ``res``         map width and height, texels                      1024     16 .. 8192
     ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  times the receiver-plane depth change to the      1.0      >= 0
-                    texel read
+    ``slope_bias``  times the receiver plane's depth slope x the      1.0      >= 0
+                    distance to the texel read, texels
     ==============  ================================================  =======  ===========
     """
 

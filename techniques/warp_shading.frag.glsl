@@ -1,8 +1,8 @@
 // Lookup of a perspective-warped directional shadow map (psm, lispsm, gmnpr): k x k texel-grid
-// PCF around the point, each sample with the constant bias plus the receiver-plane term of
+// PCF around the point, each sample with the constant bias plus the slope term of
 // shadow_map.glsl for the texel it reads. That term is computed in the warped map's own texels
-// (its Jacobian includes the warp), so it follows texels that are small near the viewer and
-// large far away.
+// (the receiver plane's Jacobian includes the warp), so it follows texels that are small near
+// the viewer and large far away.
 #include "gbuffer_read.glsl"
 #include "shadow_map.glsl"
 

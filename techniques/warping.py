@@ -436,9 +436,9 @@ PARAMETER_TABLE = """
     ==============  ================================================  =======  ===========
     ``res``         map width and height, texels                      1024     16 .. 8192
     ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  times the receiver-plane depth change to each     1.0      >= 0
-                    texel read, in the warped map's texels
-                    (receiver-plane bias, shadow_map.glsl)
+    ``slope_bias``  times the receiver plane's depth slope x each     1.0      >= 0
+                    read's distance, in the warped map's texels
+                    (shadow_map.glsl)
     ``k``           PCF samples per pixel, a square grid of texels    1        1 .. 49
     ==============  ================================================  =======  ===========
     """

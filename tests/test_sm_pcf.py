@@ -83,8 +83,8 @@ def test_pcf_region_follows_the_pixel_footprint(scene_at, evaluate):
 def test_pcf_region_never_below_min_size(scene_at, evaluate):
     """Where a pixel covers less than a texel (map 128 under a 256 image: about 0.4 texels),
     the region is min_size texels: a smaller res_factor changes nothing, a larger min_size
-    widens the soft edge (measured: 324 soft pixels, 324, 657). Catches the clamp missing (res_factor 0.5 would narrow the edge) or
-    min_size ignored."""
+    widens the soft edge (measured: 324 soft pixels, 324, 657). Catches the clamp missing
+    (res_factor 0.5 would narrow the edge) or min_size ignored."""
     base_soft, base = pcf_footprint_runs(scene_at, evaluate, 256, 128)
     _, halved = pcf_footprint_runs(scene_at, evaluate, 256, 128, res_factor=0.5)
     assert base_soft > 100
