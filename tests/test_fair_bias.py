@@ -7,6 +7,87 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness import metrics
+
+SHIPPED = ("sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long", "slant_edge",
+           "silhouette_hard", "camera_in_shadow", "jeep")
+MAPS = (256, 1024, 4096)
+FILTERED = ("pcf", "mdsm", "silhouette")
+
+# The runs that miss the issue's bar at their defaults, and why: no slope_bias meets it there
+# (measured at 0.5, 1, 1.5, 2, 3 and 4: where less bias would lower a leak, acne passes 0.1 %
+# on the same run or on others; where more would lower the acne, the leak grows).
+RESOLUTION = ("a texel covers 2-5 pixels of this view: pcf's smallest region (one texel, "
+              "Reeves et al.'s MinSize) and the map's own jaggies reach past the 2-pixel edge "
+              "band (sm's half texel already reaches 0.15 % on camera_in_shadow)")
+WINDOW = ("MDSM's extra depths come from the q-texel window, so its soft edge reaches the "
+          "window radius plus the kernel (about 2.5 texels) beyond the shadow boundary, past "
+          "the 2-pixel band where a texel covers a pixel or more: Pagot et al.'s semantics, "
+          "as wide with slope_bias 0")
+TERRAIN = ("terrain_long puts an 840-unit plane in one map: texels of 17-270 pixels near the "
+           "camera and sub-texel boxes; sm misses the bar too (acne 1.2 % at map 1024), this "
+           "is the warps' scene")
+EXCEPTIONS = {
+    **{("terrain_long", res, t): TERRAIN for res in MAPS for t in FILTERED},
+    **{(s, 256, "pcf"): RESOLUTION
+       for s in ("camera_in_shadow", "castle", "crowd", "jeep", "pins", "silhouette_hard")},
+    **{(s, 256, "mdsm"): WINDOW for s in SHIPPED},
+    **{(s, 1024, "mdsm"): WINDOW for s in ("camera_in_shadow", "castle", "crowd", "pins")},
+}
+del EXCEPTIONS["terrain_long", 4096, "silhouette"]  # meets the bar
+
+
+@pytest.fixture(scope="module")
+def fair_runs(gl_context, scene_at):
+    """(scene, map, technique) -> (acne_pct, leak_pct) at the defaults, shipped 512 x 512 views;
+    one frame and one reference per scene. About 40 s on 2 busy cores: the map passes and
+    shader builds cost more than the pixels, so the shipped size costs no more than 256."""
+    from harness import registry
+    from harness.reference import compute_reference
+    from harness.technique import Frame, reset_gl_state
+
+    runs = {}
+    for name in SHIPPED:
+        scene = scene_at(name, 512)
+        reference = compute_reference(scene, samples=16)
+        frame = Frame(scene)
+        mask = frame.compared_pixels(reference.covered)
+        try:
+            for res in MAPS:
+                for technique in ("sm", *FILTERED):
+                    cls = registry.get(technique)
+                    run = cls(cls.Params(res=res))
+                    run.prepare(frame)
+                    frame.meter.new_frame(measuring=True)
+                    v = run.render(frame).visibility
+                    run.release()
+                    reset_gl_state()
+                    runs[name, res, technique] = (
+                        metrics.acne_pct(v, reference.visibility, mask=mask),
+                        metrics.leak_pct(v, reference.visibility, mask=mask))
+        finally:
+            frame.release()
+    return runs
+
+
+@pytest.mark.parametrize("technique", FILTERED)
+@pytest.mark.parametrize("res", MAPS)
+@pytest.mark.parametrize("scene_name", SHIPPED)
+def test_defaults_leave_no_acne_and_no_leak_beyond_sm(fair_runs, scene_name, res, technique):
+    """Issue 12: at its defaults a technique shows acne_pct <= 0.1 and leak_pct <= sm's + 0.1
+    on every shipped scene and map size. EXCEPTIONS lists where that cannot hold and why; an
+    exception that starts meeting the bar fails here too, so the list stays true. Catches a
+    slope term lost or too small (pcf at 1024 on castle, crowd, jeep: acne; silhouette on the
+    box face), or too large (leaks beyond sm's)."""
+    acne, leak = fair_runs[scene_name, res, technique]
+    sm_leak = fair_runs[scene_name, res, "sm"][1]
+    meets = acne <= 0.1 and leak <= sm_leak + 0.1
+    reason = EXCEPTIONS.get((scene_name, res, technique))
+    if reason is None:
+        assert meets, f"acne {acne:.3f} %, leak {leak:.3f} % (sm {sm_leak:.3f} %)"
+    else:
+        assert not meets, f"now meets the bar (acne {acne:.3f}, leak {leak:.3f}): drop the exception"
+
 
 ZERO_BIAS = {
     "sm": {"bias": 0.0, "slope_bias": 0.0},
