@@ -571,6 +571,7 @@ class _Truth:
     def __post_init__(self):
         self.visibility = self.reference.visibility.astype(np.float64)
         self.band = metrics.edge_band(self.visibility, mask=self.mask)
+        self.edge_floor = metrics.edge_floor(self.visibility, mask=self.mask, band=self.band)
 
 
 def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> tuple[dict, dict]:
@@ -585,7 +586,13 @@ def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> tuple[dict, di
         levels=metrics.levels(v, ref_v, mask=mask, band=band),
         ssim=metrics.ssim(v, ref_v, mask=mask),
         psnr=metrics.psnr(v, ref_v, mask=mask),
+        acne_pct=metrics.acne_pct(v, ref_v, mask=mask, band=band),
+        leak_pct=metrics.leak_pct(v, ref_v, mask=mask, band=band),
+        edge_floor=truth.edge_floor,
     )
+    # edge_mae as a multiple of the best a 0/1 answer can do; empty where that best is 0
+    floor = truth.edge_floor
+    columns["edge_ratio"] = columns["edge_mae"] / floor if floor > 0 else None
     reference, images = truth.reference, {}
     if reference.direct is not None:
         a = frame.arrays
@@ -625,8 +632,10 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
 # A moving run stores, besides frame 0's arrays and its per-frame series, its worst frame's
 # V, reference and error and a strip of STRIP_RADIUS frames either side of it.
 STRIP_RADIUS = 2
-# The worst frame of a sequence's metrics: the largest of each; of ssim and psnr the smallest.
+# The worst frame of a sequence's metrics: the largest of each; of ssim and psnr the smallest;
+# none of levels (not an error) and edge_floor (the reference's, not the technique's).
 WORST_IS_LOWEST = ("ssim", "psnr")
+NO_WORST = ("levels", "edge_floor")
 
 
 @dataclass
@@ -704,7 +713,7 @@ def _sequence_score(timed: _Timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
             row[name] = float(np.nanmean(values))
             if name in WORST_IS_LOWEST:
                 row[f"{name}_min"] = float(np.nanmin(values))
-            elif name != "levels":
+            elif name not in NO_WORST:
                 row[f"{name}_max"] = float(np.nanmax(values))
         row.update(flicker=float(np.nanmean(flicker[1:])),
                    flicker_max=float(np.nanmax(flicker[1:])))
