@@ -399,3 +399,52 @@ def test_moving_runs_resume_like_still_ones(small_scene_file, tmp_path, gl_conte
     assert again["run_id"] == orbit["run_id"]
     for column in ("mae", "mae_max", "flicker", "flicker_max", "pop_frames", "worst_frame"):
         assert again[column] == orbit[column], column
+
+
+def test_the_dashboard_shows_error_and_flicker_per_frame_and_the_worst_frames(
+        small_scene_file, tmp_path, gl_context):
+    """A moving and a still box_plane, sm at two map sizes and sv: the moving scene's view has
+    a chart of mae, edge_mae and flicker against frame with one line per run (4 frames; flicker
+    from frame 1), each run's worst frame beside its reference with its strip, and flicker in
+    each run's plot values (the point size of the cost-accuracy plot); the still scene has none
+    of it. Catches the motion part missing, shown for a still scene, or plotting frame 0's
+    NaN flicker, and flicker left out of the plot's values."""
+    import json
+    import re
+
+    from harness.report import build_report
+
+    path = small_scene_file("box_plane", size=(64, 48))
+    scenes = yaml.safe_load(path.read_text())
+    scenes["scenes"]["box_orbit"] = {**scenes["scenes"]["box_plane"],
+                                     "motion": {"frames": 4, "light_orbit": 20}}
+    path.write_text(yaml.safe_dump(scenes))
+    experiment = tmp_path / "experiment.yaml"
+    experiment.write_text(yaml.safe_dump({"techniques": {"sm": {"product": {"res": [64, 256]}},
+                                                         "sv": {}}, "warmup": 0}))
+    out = tmp_path / "run"
+    assert cli.main(["run", str(experiment), "--scene-file", str(path), "--out", str(out),
+                     "--quiet"]) == 0
+    page = build_report(out).read_text()
+    charts = dict(re.findall(r'<script type="application/json" class="chart-spec" '
+                             r'data-for="([^"]+)">(.*?)</script>', page, re.S))
+    assert "motion-box_orbit" in charts and "motion-box_plane" not in charts
+    chart = json.loads(charts["motion-box_orbit"])
+    assert [f["title"].split(":")[0] for f in chart["facets"]] == ["mae", "edge_mae per frame",
+                                                                    "flicker"]
+    for facet in chart["facets"]:
+        assert len(facet["series"]) == 3
+        frames = [p["x"] for p in facet["series"][0]["points"]]
+        assert frames == ([1, 2, 3] if facet["title"].startswith("flicker") else [0, 1, 2, 3])
+    sections = {name: page[page.index(f'id="scene-{name}"'):] for name in ("box_orbit",
+                                                                            "box_plane")}
+    for name, text in sections.items():
+        text = text[:text.index("</section>")]
+        runs = json.loads(re.search(r'class="scene-data">(.*?)</script>', text, re.S)[1])["runs"]
+        moving_scene = name == "box_orbit"
+        assert text.count('class="worst-frame"') == (3 if moving_scene else 0)
+        assert all((r["values"]["flicker"] is not None) == moving_scene for r in runs)
+        if moving_scene:
+            assert text.count('alt="strip: V at frame') == sum(
+                len(np.load(out / r["array"])["strip_frames"]) for r in _rows(out)
+                if r["scene"] == name)
