@@ -77,7 +77,8 @@ class ShadowVolumes(Technique):
     of the screen size" took 10.2 to 23.6 Hz at 1024^2, beyond its half-resolution 15.7 Hz,
     so a quarter along each axis).
 
-    Volume fragments are counted once, untimed, with the depth test off: they are the row's
+    Volume fragments are counted untimed, with the depth test off, whenever the light or the
+    camera moved (once on a still scene): they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
 
     ===============  =====================================================  ==========  =====

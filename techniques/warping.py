@@ -769,7 +769,7 @@ class WarpedShadowMap(Technique):
                             maps={"pixels_per_texel_log2": self.alias_log2})
 
     def release(self) -> None:
-        # prepare may have stopped early (NotApplicable, a failed compile)
+        # prepare may have stopped early (a failed compile)
         for name in ("map", "shading"):
             resource = self.__dict__.pop(name, None)
             if resource is not None:
