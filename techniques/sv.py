@@ -117,6 +117,7 @@ class ShadowVolumes(Technique):
     def prepare(self, frame: Frame) -> None:
         p = self.params
         self.front_increments = p.method != "zfail"
+        self.meshes = [sv_volumes.clean(part) for part in frame.scene.parts]
         self.volumes = VertexArray(np.zeros((0, 5), np.float32), (4, 1))
         self.volume_light = self.view_proj = None  # what the volumes were last built for
         divisor = MASK_DIVISOR[p.mask_res]
@@ -150,7 +151,7 @@ class ShadowVolumes(Technique):
                 self.volume_set = sv_volumes.build(
                     frame.scene.parts, light, caps=p.method == "zfail",
                     nested_counts=p.buffer == "stencil" or p.normalize == "max",
-                    grouping=p.volumes)
+                    grouping=p.volumes, meshes=self.meshes)
                 self.volume_light = light_key
             if light_moved or (camera_moved and (p.method == "nearclip" or p.buffer != "stencil")):
                 vertices, self.near_clip_triangles = self._vertices(frame)

@@ -171,8 +171,9 @@ def polygon_volumes(mesh: CleanMesh, light: Light, *, caps: bool):
 
 
 def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: bool,
-          grouping: str) -> VolumeSet:
-    """All volumes of a scene.
+          grouping: str, meshes: list[CleanMesh] | None = None) -> VolumeSet:
+    """All volumes of a scene (``meshes``: the parts already :func:`clean`, which depends on
+    the geometry alone, so a moving light reuses it).
 
     ``nested_counts``: the counter holds several entries per ray (the stencil's integer, or
     the max normalisation's 1, 1/2, 1/4 ...), so any closed mesh may be one silhouette volume;
@@ -183,8 +184,7 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: boo
     """
     triangles, owners, casters, caster_volume, warnings = [], [], [], [], []
     volumes = edges = 0
-    for part in parts:
-        mesh = clean(part)
+    for part, mesh in zip(parts, meshes or map(clean, parts)):
         notes = list(mesh.notes)
         if not len(mesh.faces):
             warnings.append(f"{part.name}: no non-degenerate triangles; casts no shadow")
