@@ -62,8 +62,8 @@ class Technique:
     summary: ClassVar[str]
     paper: ClassVar[str]
     Params: ClassVar[type[TechniqueParams]]
-    # The quality knob(s) and the values worth trying, in the order a curve joins them:
-    # ``{parameter: (value, ...)}``. A curve walks one knob at a time from the defaults (see
+    # The quality knob(s) and the values worth trying, ``{parameter: (value, ...)}``: what
+    # ``techniques: curves`` runs, one knob at a time from the defaults (see
     # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
     quality_knobs: ClassVar[dict[str, tuple]] = {}
 
