@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from harness import cli, registry, report, results
-from papers import claims
+from papers import claims, common, gmnpr, mdsm, silhouette
 
 ROOT = Path(__file__).resolve().parent.parent
 REQUIRED = {"paper": str, "where": str, "claim": str, "reported": str, "measured": str,
@@ -29,10 +29,10 @@ def _row(technique, scene="s", width=256, params=None, **values):
             "array": f"arrays/{scene}/{width}x{width}/{technique}-x.npz", **values}
 
 
-def _write(root: Path, name: str, rows: list[dict]) -> claims.Runs:
+def _write(root: Path, name: str, rows: list[dict]) -> common.Runs:
     (root / name).mkdir(parents=True)
     results.write_rows(root / name, rows)
-    return claims.Runs(root, name)
+    return common.Runs(root, name)
 
 
 @pytest.mark.parametrize("mdsm_times, agrees", [
@@ -48,7 +48,7 @@ def test_mdsm_crossover_decided_from_times(tmp_path, mdsm_times, agrees):
         rows.append(_row("pcf", width=w, params={"k": 16, "res": 512}, time_ms=tp))
         rows.append(_row("mdsm", width=w, params={"k": 9, "n": 2, "res": 512}, time_ms=tm,
                          shaded_px=frac * 512**2))
-    (claim,) = claims.mdsm_crossover_claims(_write(tmp_path, "mdsm_crossover", rows))
+    (claim,) = mdsm.crossover_claims(_write(tmp_path, "mdsm_crossover", rows))
     assert claim.agrees is agrees
     assert bool(claim.why_not) is not agrees
     if mdsm_times[-1] > pcf_times[-1]:
@@ -63,7 +63,7 @@ def test_silhouette_table_claims_compare_with_the_paper(tmp_path):
         rows += [_row("sm", scene, time_ms=times[0], edge_mae=0.1),
                  _row("sv", scene, time_ms=times[1], overdraw=o, edge_mae=0.05),
                  _row("silhouette", scene, time_ms=times[2], sil_pct=p, edge_mae=0.07)]
-    found = {(c.where, c.claim): c for c in claims.silhouette_claims(_write(tmp_path, "silh", rows))}
+    found = {(c.where, c.claim): c for c in silhouette.claims(_write(tmp_path, "silh", rows))}
     assert not found["Table 1", "shadow-volume overdraw O on crowd"].agrees
     assert found["Table 1", "shadow-volume overdraw O on castle"].agrees
     assert found["Table 1", "silhouette fraction P on castle"].agrees  # 7.0 vs 7.2
@@ -75,7 +75,7 @@ def test_silhouette_table_claims_compare_with_the_paper(tmp_path):
 
 
 def test_gmnpr_analytic_figures_hold():
-    fig5, fig6 = claims.gmnpr_analytic_claims()
+    fig5, fig6 = gmnpr.analytic_claims()
     assert fig5.agrees and fig6.agrees
     # Figure 6 at theta = 90 degrees by hand: psi (z + varphi)^2 / z with lambda_1
     n, f, phi = 1.0, 100.0, math.pi / 6
@@ -89,7 +89,7 @@ def test_gmnpr_analytic_figures_hold():
 
 def test_a_disagreeing_claim_must_say_why():
     with pytest.raises(ValueError, match="says why"):
-        claims.Claim("p", "Table 1", "c", "r", "m", "t", agrees=False)
+        common.Claim("p", "Table 1", "c", "r", "m", "t", agrees=False)
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +104,7 @@ def mdsm_run(tmp_path_factory):
 
 def test_real_mdsm_experiment_reproduces_table_1(mdsm_run):
     found = claims.evaluate(mdsm_run)
-    table1 = next(c for c in found if c.paper == claims.MDSM and c.where == "Table 1")
+    table1 = next(c for c in found if c.paper == mdsm.PAPER and c.where == "Table 1")
     assert table1.agrees
     levels = {(int(r[0]), n + 1): int(cell.split()[0])
               for r in table1.table["rows"] for n, cell in enumerate(r[1:])}
@@ -126,7 +126,7 @@ def test_papers_json_schema_and_page(mdsm_run):
             assert (mdsm_run / image["array"]).is_file()
             assert (mdsm_run / image["reference"]).is_file()
     # only MDSM ran, plus the analytic GMNPR figures
-    assert {c["paper"] for c in doc["claims"]} == {claims.MDSM, claims.GMNPR}
+    assert {c["paper"] for c in doc["claims"]} == {mdsm.PAPER, gmnpr.PAPER}
 
     report.build_report(mdsm_run / "mdsm")
     index = (mdsm_run / "mdsm" / "index.html").read_text()
