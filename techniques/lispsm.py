@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
-from .warping import PARAMETER_TABLE, ViewSetup, WarpedShadowMap, lambda_lispsm, light_space_warp
+from .warping import (PARAMETER_TABLE, ViewSetup, WarpedShadowMap, light_space_warp,
+                      lispsm_eye_distance, warp_columns)
 
 
 class LightSpacePerspectiveShadowMap(WarpedShadowMap):
     __doc__ = """A perspective warp in light space along the view direction projected
     perpendicular to the light, so the light stays directional after it.
 
-    The warp frustum's eye sits n_opt = (z_n + sqrt(z_n z_f)) / sin(gamma) before the body,
-    i.e. lambda = n_opt / (body depth along the warp axis), equation 9 of Zhang et al.; z_n and
-    z_f are the view depths of the view frustum clipped to the scene. Directional lights only;
-    shaded by ``warp_shading.frag.glsl``. Columns: ``theta_deg``, ``lambda``, ``alias_mean``,
-    ``alias_max``, ``outside_pct``.
+    The warp frustum's eye sits n_opt = (n + sqrt(n f)) / sin(theta) before the body along the
+    warp axis (P_n of equation 9 of Zhang et al.; where Wimmer et al.'s code and
+    OpenSceneGraph put it), n and f the nearest and farthest view depth of the visible
+    receivers; its lambda is n_opt over the body's actual depth along the warp axis, clamped to
+    LAMBDA_MAX near theta = 0 where n_opt is infinite. A spot light is warped in its
+    post-projective space, as the authors' code does, with theta, n and f measured there; with
+    the camera behind the spot light's plane the map is not warped. Shaded by
+    ``warp_shading.frag.glsl``. Columns: ``theta_deg``, ``lambda``, ``n_opt``,
+    ``warp_eye_distance`` (equal to ``n_opt`` unless clamped), ``depth_near``, ``depth_far``
+    (n and f), ``alias_mean``, ``alias_max``, ``alias_near``, ``outside_pct``.
     """ + PARAMETER_TABLE
 
     name = "lispsm"
@@ -21,5 +27,5 @@ class LightSpacePerspectiveShadowMap(WarpedShadowMap):
     paper = "Wimmer, Scherzer, Purgathofer 2004, Light space perspective shadow maps"
 
     def warp(self, setup: ViewSetup, res: int):
-        warp = light_space_warp(setup, res, lambda_lispsm)
-        return warp, {"lambda": warp.lam}
+        warp = light_space_warp(setup, res, lispsm_eye_distance)
+        return warp, warp_columns(warp)

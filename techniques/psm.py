@@ -6,16 +6,21 @@ from .warping import PARAMETER_TABLE, ViewSetup, WarpedShadowMap, post_perspecti
 
 
 class PerspectiveShadowMap(WarpedShadowMap):
-    __doc__ = """The map is rendered in the camera's post-perspective space, where the
-    directional light becomes a point light (an inverted one when it is behind the viewer,
-    a directional one when it is perpendicular to the view).
+    __doc__ = """The map is rendered in the camera's post-perspective space, where the light (a
+    directional light, or a spot light's point, as the paper treats both) becomes a point light
+    (an inverted one when it is behind the viewer, a directional one when it lies in the
+    camera's plane).
 
     The virtual camera slides back until every caster of the visible receivers is in front of
-    it; the light frustum is fitted to the receivers there (unit-cube clipping). Its known
-    failure, a light whose post-perspective point lies among the receivers (the light in front
-    of the viewer inside the view), is measured in ``outside_pct``, not hidden. Directional
-    lights only; shaded by ``warp_shading.frag.glsl``. Columns: ``theta_deg``, ``slide_back``,
-    ``light_kind``, ``alias_mean``, ``alias_max``, ``outside_pct``.
+    it; the light frustum is fitted to the receivers there (unit-cube clipping). Where that map
+    still cannot hold every visible receiver (some fall outside its unit cube or behind the
+    post-perspective light: a light behind the viewer nearly along the view direction, or one in
+    front of the viewer whose post-perspective point lies among the receivers), the run falls
+    back to the unwarped map (orthographic along a directional light, the spot light's own
+    perspective) fitted to the same body, and ``fallback`` says so; ``outside_pct`` then
+    measures that map. Shaded by ``warp_shading.frag.glsl``. Columns: ``theta_deg``,
+    ``slide_back``, ``light_kind``, ``fallback``, ``alias_mean``, ``alias_max``,
+    ``alias_near``, ``outside_pct``.
     """ + PARAMETER_TABLE
 
     name = "psm"
@@ -24,4 +29,5 @@ class PerspectiveShadowMap(WarpedShadowMap):
 
     def warp(self, setup: ViewSetup, res: int):
         warp = post_perspective_warp(setup, res)
-        return warp, dict(slide_back=warp.slide_back, light_kind=warp.light_kind)
+        return warp, dict(slide_back=warp.slide_back, light_kind=warp.light_kind,
+                          fallback=warp.fallback)

@@ -23,7 +23,7 @@ CASES = {
     "hard_spot_close",
 }
 RESOLUTION_LIMITED = {"hard_huge_depth_range", "hard_near_plane_crossing"}
-DIRECTIONAL_ONLY = {"psm", "lispsm", "gmnpr"}
+DIRECTIONAL_ONLY = {"gmnpr"}  # psm and lispsm warp spot lights too
 
 
 @pytest.fixture(scope="module")

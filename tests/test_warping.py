@@ -3,6 +3,7 @@ and, over random cameras and lights, the properties every warped light transform
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -166,7 +167,7 @@ def configurations(draw):
     bounds = np.stack([centre - half, centre + half])
     view = look_at(eye, eye + forward, up)
     setup = W.ViewSetup(view, perspective(yfov, aspect, near, far), eye, forward, light,
-                        near, far, bounds)
+                        near, far, bounds, np.empty((0, 3)))
     return setup, draw(st.integers(0, 2**31 - 1))
 
 
@@ -187,9 +188,14 @@ def to_clip(clip, points):
 @settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(configurations())
 def test_random_configurations_matrix_properties(case):
+    """Over random cameras, lights and scene boxes, with random visible receivers (or none):
+    finite matrices; every receiver inside each map's unit cube (PSM's after its fallback); a
+    texel is one light ray and depth grows along it; PSM's virtual camera sees the whole body
+    (casters included) in front of its near plane, slid back no further than needed."""
     setup, seed = case
     points = visible_samples(setup, seed)
-    for choose in (W.lambda_lispsm, W.lambda_gmnpr):
+    setup = dataclasses.replace(setup, visible=points)
+    for choose in (W.lispsm_eye_distance, W.gmnpr_eye_distance):
         warp = W.light_space_warp(setup, 256, choose)
         assert metrics.nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
         assert 0 < warp.lam <= W.LAMBDA_MAX
@@ -211,3 +217,9 @@ def test_random_configurations_matrix_properties(case):
     psm = W.post_perspective_warp(setup, 256)
     assert metrics.nonfinite(psm.clip, psm.frustum.proj) == 0
     assert psm.slide_back >= 0
+    virtual_depth = to_clip(psm.camera, W.light_space(setup).world_body)[:, 3]
+    assert virtual_depth.min() >= setup.near * (1 - 1e-9)
+    if psm.slide_back > 0:
+        assert virtual_depth.min() == pytest.approx(setup.near, rel=1e-9)
+    if len(points):
+        assert not W.outside_unit_cube(psm.clip, points, np.ones(len(points), bool)).any()
