@@ -16,7 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import report, results
+from harness import metrics, report, results
+
+# V strictly between these is penumbra: a filtered, soft edge pixel
+PENUMBRA = (0.02, 0.98)
+# pixels either side of a reference shadow edge within which penumbra counts as edge width:
+# wide enough for the widest filtered edge of the paper experiments (a 4 x 4 kernel of 2-pixel
+# texels, 8 px), narrow against their lit and shadowed regions, where penumbra is acne or leaks
+EDGE_WIDTH_BAND = 8
 
 
 @dataclass
@@ -95,6 +102,19 @@ class Runs:
     def image(self, row, label: str) -> dict:
         return {"label": label, "array": f"{self.name}/{row['array']}",
                 "reference": str(self._reference(row).relative_to(self.root))}
+
+
+def edge_width_px(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> int:
+    """A soft edge's width as an area: the penumbra pixels (fractional V) within ``width``
+    pixels of a reference shadow edge. Along the same edges (one scene and view) it grows with
+    the edge's mean width; penumbra away from every edge (acne, leaks) does not count."""
+    v, covered, ref, ref_covered = runs.arrays(row)
+    band = metrics.edge_band(ref, mask=covered & ref_covered, width=width)
+    return int((band & (v > PENUMBRA[0]) & (v < PENUMBRA[1])).sum())
+
+
+def signed_pct(value: float, base: float) -> str:
+    return f"{100 * (value - base) / base:+.3g} %"
 
 
 def increasing(values, strict=True) -> bool:

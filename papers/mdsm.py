@@ -4,15 +4,16 @@ equivalences of Figures 6 and 7 (experiment ``mdsm``) and the cost crossover of 
 
 from __future__ import annotations
 
-from .common import Claim, Runs, g, within_factor
+import math
+
+from .common import EDGE_WIDTH_BAND, Claim, Runs, edge_width_px, g, signed_pct
 
 PAPER = "Pagot, Comba, Oliveira (MDSM)"
 
 TABLE = dict(res=128, q=16, select="sort")
 OUTCOMES_SEEN = 0.95  # share of the nk + 1 outcomes a 256^2 view of one edge must show
-EQUIVALENCE_REL = 0.2  # "comparable" / "very similar": edge_mae within 20 %
-CROSSOVER = 1.28  # equation 6: MDSM(9, 2) cheaper once f > 1.28 x res^2
-CROSSOVER_FACTOR = 2.0
+EQUIVALENCE_REL = 0.2  # "comparable" / "very similar": edge width within 20 %
+CROSSOVER = 1.28  # equations 5-6: MDSM(9, 2) fetches less than PCF(16, 1) once f > 1.28 x res^2
 
 
 def table_claims(runs: Runs) -> list[Claim]:
@@ -34,74 +35,131 @@ def table_claims(runs: Runs) -> list[Claim]:
         table={"columns": ["k \\ n"] + [str(n) for n in ns],
                "rows": [[str(k)] + [f"{grid[k, n]} ({n * k + 1})" for n in ns] for k in ks]}))
 
-    def equivalence(where, scene, pairs, reported):
-        rows, images, lines, ok = [], [], [], True
-        for (kp, np_), (km, nm) in pairs:
-            a = runs.one("mdsm", scene, k=kp, n=np_, **TABLE)
-            b = runs.one("mdsm", scene, k=km, n=nm, **TABLE)
-            ea, eb = float(a["edge_mae"]), float(b["edge_mae"])
-            rel = abs(eb - ea) / max(ea, 1e-12)
-            ok &= rel <= EQUIVALENCE_REL
-            lines.append(f"PCF({kp},{np_}) {g(ea)} vs MDSM({km},{nm}) {g(eb)} "
-                         f"({'+' if eb >= ea else '-'}{g(100 * rel)} %)")
-            rows.append([f"PCF({kp},{np_})", g(ea), int(a["levels"]),
-                         f"PCF({km},{nm})", g(eb), int(b["levels"])])
-            images += [runs.image(a, f"PCF({kp},{np_})"), runs.image(b, f"PCF({km},{nm})")]
-        return Claim(
-            PAPER, where, "an n-SM with a smaller PCF kernel matches the standard map with the "
-            "larger kernel", reported, "edge_mae on " + scene + ": " + "; ".join(lines),
-            f"edge_mae within {100 * EQUIVALENCE_REL:g} % of the standard map's", ok,
-            why_not=("against a ray-traced hard reference the n-SM's extra outcomes do not buy "
-                     "the larger kernel's edge accuracy: it spreads its levels over a narrower "
-                     "band; the paper judged the images by eye, not by error"),
-            experiment=runs.name, images=images,
-            table={"columns": ["standard", "edge_mae", "levels", "n-SM", "edge_mae", "levels"],
-                   "rows": rows})
-
-    claims.append(equivalence("Figure 6", "slant_edge", [((9, 1), (4, 3)), ((16, 1), (9, 3))],
+    claims.append(equivalence(runs, "Figure 6", "slant_edge", [(9, 4, 3), (16, 9, 3)],
                               "PCF 3x3 ~ 3-SM PCF 2x2; PCF 4x4 ~ 3-SM PCF 3x3 (planar)"))
-    claims.append(equivalence("Figure 7", "pins", [((16, 1), (9, 2)), ((16, 1), (9, 3))],
+    claims.append(equivalence(runs, "Figure 7", "pins", [(16, 9, 2), (16, 9, 3)],
                               "PCF 4x4 ~ 2-SM and 3-SM with PCF 3x3 (curved receivers)"))
     return claims
 
 
+def equivalence(runs: Runs, where: str, scene: str, triples, reported: str) -> Claim:
+    """The n-SM's PCF(k, n) against the standard map's larger PCF(K, 1), for each (K, k, n) in
+    ``triples``, in edge width: the figures compare how wide and smooth the shadow transitions
+    look, not their accuracy against an exact shadow, which a wider edge lowers.
+
+    The control is PCF(k, 1), the n-SM's own kernel without its extra depths: it must fall
+    outside the tolerance, or a match would not show the extra depths at work (on pins PCF(9, 1)
+    is within 12 % of PCF(16, 1) in edge_mae)."""
+    width, rows, images, lines, too_far, control_close = {}, [], [], [], [], []
+
+    def measure(k, n, label):
+        if (k, n) not in width:
+            row = runs.one("mdsm", scene, k=k, n=n, **TABLE)
+            width[k, n] = edge_width_px(runs, row)
+            rows.append([label, width[k, n], g(float(row["edge_mae"])), int(row["levels"])])
+            images.append(runs.image(row, label))
+        return width[k, n]
+
+    for big, k, n in triples:
+        w_standard = measure(big, 1, f"PCF({big},1)")
+        w_nsm = measure(k, n, f"PCF({k},{n})")
+        w_control = measure(k, 1, f"PCF({k},1), control")
+        if abs(w_nsm - w_standard) > EQUIVALENCE_REL * w_standard:
+            too_far.append(f"PCF({k},{n}) {signed_pct(w_nsm, w_standard)} against PCF({big},1)")
+        if abs(w_control - w_standard) <= EQUIVALENCE_REL * w_standard:
+            control_close.append(f"PCF({k},1) {signed_pct(w_control, w_standard)}")
+        lines.append(f"PCF({big},1) {w_standard}, MDSM({k},{n}) {w_nsm} "
+                     f"({signed_pct(w_nsm, w_standard)}), control PCF({k},1) {w_control} "
+                     f"({signed_pct(w_control, w_standard)})")
+    window = math.isqrt(TABLE["q"])
+    reasons = []
+    if too_far:
+        reasons.append(f"the n-SM's edge width is off by more than the tolerance ({', '.join(too_far)}): "
+                       "its extra depths are the minimum and maximum of a "
+                       f"{window} x {window}-texel window (q = {TABLE['q']}), which sets how far "
+                       "they widen the edge, whatever the kernel; the paper leaves the window "
+                       "open (\"a neighborhood\")")
+    if control_close:
+        reasons.append(f"the control is as close ({', '.join(control_close)}): the n-SM's "
+                       "kernel alone gives the larger kernel's edge, so the match does not "
+                       "show the extra depths at work")
+    return Claim(
+        PAPER, where, "an n-SM with a smaller PCF kernel gives the edge width of the standard "
+        "map with the larger kernel (a match in edge width, not accuracy)", reported,
+        f"edge width (penumbra pixels within {EDGE_WIDTH_BAND} px of a reference edge) on "
+        f"{scene}: " + "; ".join(lines),
+        f"the n-SM's edge width within {100 * EQUIVALENCE_REL:g} % of the standard map's, and "
+        "the control (the n-SM's kernel on the standard map) not within it; edge_mae "
+        "(accuracy) only shown",
+        not too_far and not control_close, why_not="; ".join(reasons),
+        experiment=runs.name, images=images,
+        table={"columns": ["PCF(k, n)", "edge width (px)", "edge_mae", "levels"], "rows": rows})
+
+
+def _crossing(fs, diffs) -> tuple[float, float, float | None] | None:
+    """Where ``diffs`` (MDSM minus PCF, by view, ``fs`` ascending) turns negative for good: the
+    bracket (f before, f after] and the linear interpolation between them (None when MDSM is
+    ahead at the first view already); None when it never does."""
+    first = next((i for i in range(len(fs)) if all(d < 0 for d in diffs[i:])), None)
+    if first is None:
+        return None
+    if first == 0:
+        return 0.0, fs[0], None
+    lo, hi, d_lo, d_hi = fs[first - 1], fs[first], diffs[first - 1], diffs[first]
+    return lo, hi, lo + (hi - lo) * d_lo / (d_lo - d_hi)
+
+
 def crossover_claims(runs: Runs) -> list[Claim]:
-    mdsm = runs.all("mdsm", n=2, k=9).sort_values("width")
+    """Equations 5-6 count texture fetches: PCF(16, 1) makes 16 per shaded fragment, MDSM(9, 2)
+    q per map texel to select its second depths plus 9 per fragment. The claim is judged on the
+    fetches each run counts (f: the view's shaded pixels, ``shaded_px``; MDSM's own
+    ``select_fetches`` and ``shading_fetches``); the timings are shown beside them, not judged:
+    on a software rasterizer a frame's time is not made of fetches alone."""
+    mdsm = runs.all("mdsm", n=2, k=9).sort_values("shaded_px")
     res = int(mdsm["params"].iloc[0]["res"])
-    points = []
+    views = []  # (width, f / res^2, PCF fetches, MDSM fetches, PCF ms, MDSM ms)
     for _, m in mdsm.iterrows():
         p = runs.one("pcf", m["scene"], width=int(m["width"]), k=16)
-        points.append((float(m["shaded_px"]) / res**2, float(p["time_ms"]), float(m["time_ms"]),
-                       int(m["width"])))
-    cheaper = [t_m < t_p for _, t_p, t_m, _ in points]
-    # the smallest f from which MDSM stays cheaper at every larger measured f
-    first = next((i for i in range(len(points)) if all(cheaper[i:])), None)
-    measured = ("never cheaper up to f = " + g(points[-1][0]) + " x res^2" if first is None
-                else f"cheaper from f = {g(points[first][0])} x res^2 "
-                     f"({points[first][3]}^2 camera) on")
+        f = float(m["shaded_px"])
+        views.append((int(m["width"]), f / res**2, f * float(p["fetches_per_px"]),
+                      float(m["select_fetches"]) + float(m["shading_fetches"]),
+                      float(p["time_ms"]), float(m["time_ms"])))
+    fs = [v[1] for v in views]
+    fetches = _crossing(fs, [v[3] - v[2] for v in views])
+    times = _crossing(fs, [v[5] - v[4] for v in views])
+
+    def says(crossing, fewer):
+        if crossing is None:
+            return f"MDSM never {fewer} up to f = {g(fs[-1])} x res^2"
+        lo, hi, at = crossing
+        if at is None:
+            return f"MDSM {fewer} from the smallest view on (f = {g(hi)} x res^2)"
+        return f"cross between f = {g(lo)} and {g(hi)} x res^2 (interpolated {g(at)})"
+
+    agrees = fetches is not None and fetches[0] < CROSSOVER <= fetches[1]
     return [Claim(
-        PAPER, "Equations 5-6", "MDSM(9, 2) costs less than PCF(16, 1) once the shaded fragments "
-        f"f exceed {CROSSOVER} x res^2",
-        f"crossover at f = {CROSSOVER} x {res}^2 (a 656^2 view)",
-        measured + "; " + ", ".join(f"{w}^2: {g(tp)} vs {g(tm)} ms" for _, tp, tm, w in points),
-        f"crossover within a factor {CROSSOVER_FACTOR:g} of {CROSSOVER} x res^2",
-        first is not None and within_factor(points[first][0], CROSSOVER,
-                                             CROSSOVER_FACTOR),
-        why_not=("MDSM never became cheaper over the measured views: a reversed ordering"
-                 if first is None else
-                 "the equations count texture fetches only, and the ordering at large f agrees; "
-                 + ("MDSM wins earlier than predicted: the selection pass (one fragment per "
-                    "texel, neighbouring fetches cached) costs less than its q x res^2 fetches "
-                    "suggest" if points[first][0] < CROSSOVER else
-                    "MDSM wins later than predicted; on a shared 2-core software rasterizer the "
-                    "per-view medians are noisy, and one slow MDSM frame near the crossover "
-                    "moves it a whole view size")),
+        PAPER, "Equations 5-6", "MDSM(9, 2) needs fewer shadow-map fetches than PCF(16, 1) once "
+        f"the shaded fragments f exceed {CROSSOVER} x res^2",
+        f"crossover at f = {CROSSOVER} x {res}^2 (a 656^2 view, one fragment per pixel)",
+        f"counted fetches {says(fetches, 'fewer')}; times on {runs.rows['renderer'].iloc[0]} "
+        f"(not judged) {says(times, 'faster')}",
+        f"the paper's {CROSSOVER} x res^2 between the last view where MDSM fetches more and the "
+        "first from which it fetches less",
+        agrees,
+        why_not=(f"MDSM's counted fetches never fall below PCF's over the measured views "
+                 f"(f up to {g(fs[-1])} x res^2)" if fetches is None else
+                 f"the counted fetches cross between f = {g(fetches[0])} and {g(fetches[1])} x "
+                 f"res^2, not at the paper's {CROSSOVER}: the runs do not count equation 4's "
+                 "q x res^2 + k f against PCF's 16 f"),
         experiment=runs.name,
+        table={"columns": ["view", "f / res^2", "PCF(16, 1) fetches", "MDSM(9, 2) fetches",
+                           "PCF(16, 1) ms", "MDSM(9, 2) ms"],
+               "rows": [[f"{w}^2", g(f), f"{g(fp / 1e6)} M", f"{g(fm / 1e6)} M", g(tp), g(tm)]
+                        for w, f, fp, fm, tp, tm in views]},
         plot={"x_title": "f / res^2 (shaded fragments over map texels)",
-              "y_title": "time_ms", "log_y": False,
-              "series": [{"name": "PCF(16, 1)", "x": [p[0] for p in points],
-                          "y": [p[1] for p in points]},
-                         {"name": "MDSM(9, 2)", "x": [p[0] for p in points],
-                          "y": [p[2] for p in points]},
+              "y_title": "shadow-map fetches per frame (millions)", "log_y": False,
+              "series": [{"name": "PCF(16, 1)", "x": fs, "y": [v[2] / 1e6 for v in views]},
+                         {"name": "MDSM(9, 2)", "x": fs, "y": [v[3] / 1e6 for v in views]},
                          {"name": "equation 6 crossover", "x": [CROSSOVER] * 2,
-                          "y": [0, max(max(p[1], p[2]) for p in points)], "dash": "dot"}]})]
+                          "y": [0, max(max(v[2], v[3]) for v in views) / 1e6],
+                          "dash": "dot"}]})]

@@ -20,6 +20,9 @@ METHODS = {"screen": dict(buffer="screen", mask_res="full"),
            "stencil": dict(buffer="stencil", mask_res="full"),
            "half": dict(buffer="alpha", mask_res="half")}
 RATIO_FACTOR = 2.0
+# section 5: a mask "a quarter of the screen size" (a quarter along each axis: the half mask
+# gave 15.7 Hz) took the alpha buffer from 10.2 to 23.6 Hz at 1024^2
+QUARTER_WIDTH, QUARTER_HZ = 1024, (10.2, 23.6)
 HALF_FILL = (0.2, 0.3)  # "the number of rasterized pixels is reduced to one fourth"
 
 
@@ -84,6 +87,18 @@ def table2_claims(runs: Runs) -> list[Claim]:
         experiment=runs.name,
         images=[runs.image(full, f"full-resolution mask {top}^2"),
                 runs.image(halfr, f"half-resolution mask {top}^2")]))
+    quarter = runs.one("sv", width=QUARTER_WIDTH, buffer="alpha", mask_res="quarter")
+    speedup = _frame_ratio(run[QUARTER_WIDTH, "alpha"]) / _frame_ratio(quarter)
+    claims.append(Claim(
+        PAPER, "Section 5", f"a quarter-resolution mask (a quarter along each axis) raises the "
+        f"frame rate at {QUARTER_WIDTH}^2", f"{QUARTER_HZ[0]} -> {QUARTER_HZ[1]} Hz, x "
+        f"{g(QUARTER_HZ[1] / QUARTER_HZ[0])}",
+        f"frame time full-resolution alpha over quarter-resolution alpha: x {g(speedup)}",
+        f"within a factor {RATIO_FACTOR:g} of x {g(QUARTER_HZ[1] / QUARTER_HZ[0])}",
+        within_factor(speedup, QUARTER_HZ[1] / QUARTER_HZ[0], RATIO_FACTOR),
+        why_not=("the volumes' fill is a smaller share of our frame than of the paper's, so "
+                 "rasterizing fewer mask pixels saves less"),
+        experiment=runs.name, images=[runs.image(quarter, f"quarter-resolution mask {QUARTER_WIDTH}^2")]))
     return claims
 
 
@@ -92,17 +107,26 @@ RIGHT_PCT = 0.5  # a count the method claims right: wrong on under 0.5 % of pixe
 
 
 def camera_claims(runs: Runs) -> list[Claim]:
-    zpass = runs.one("sv", "camera_in_shadow", method="zpass")
-    zfail = runs.one("sv", "camera_in_shadow", method="zfail")
-    wrong = (float(zpass["wrong_pct"]), float(zfail["wrong_pct"]))
+    """Section 3.2: with the viewer inside a shadow volume the plain (z-pass) count is wrong, and
+    the paper's fix, the volume clipped at the near plane with the clip polygon drawn as a front
+    face (``nearclip``), is right. z-fail (Carmack's reverse; Everitt and Kilgard 2002) is later
+    work, not the paper's: shown and checked beside it."""
+    run = {m: runs.one("sv", "camera_in_shadow", method=m) for m in ("zpass", "nearclip", "zfail")}
+    wrong = {m: float(r["wrong_pct"]) for m, r in run.items()}
+    failed = [m for m in ("nearclip", "zfail") if wrong[m] >= RIGHT_PCT]
     return [Claim(
-        PAPER, "Section 2", "with the viewer inside a shadow volume the plain count is wrong; "
-        "counting behind the surface (z-fail) is right",
-        "the viewer inside a volume needs the volume closed at the near plane",
-        f"wrong_pct z-pass {g(wrong[0])} %, z-fail {g(wrong[1])} %",
-        f"z-pass > {INSIDE_WRONG_PCT:g} %, z-fail < {RIGHT_PCT:g} %",
-        wrong[0] > INSIDE_WRONG_PCT and wrong[1] < RIGHT_PCT,
-        why_not="the camera_in_shadow view does not put the camera inside a volume, or z-fail "
-                "miscounts", experiment=runs.name,
-        images=[runs.image(zpass, "z-pass, camera inside the volume"),
-                runs.image(zfail, "z-fail (Carmack's reverse)")])]
+        PAPER, "Section 3.2", "with the viewer inside a shadow volume the plain count is wrong; "
+        "clipping the volume at the near plane and drawing the clip polygon as a front face "
+        "makes it right",
+        "a viewer inside a volume gets the right count from the near-plane clip polygons",
+        f"wrong_pct z-pass {g(wrong['zpass'])} %, near-plane clip {g(wrong['nearclip'])} %; "
+        f"z-fail (later work, not the paper's) {g(wrong['zfail'])} %",
+        f"z-pass > {INSIDE_WRONG_PCT:g} %; near-plane clip and z-fail < {RIGHT_PCT:g} %",
+        wrong["zpass"] > INSIDE_WRONG_PCT and not failed,
+        why_not=("the camera_in_shadow view does not put the camera inside a volume"
+                 if wrong["zpass"] <= INSIDE_WRONG_PCT else
+                 "miscounted with the camera inside the volume: " + ", ".join(failed)),
+        experiment=runs.name,
+        images=[runs.image(run["zpass"], "z-pass, camera inside the volume"),
+                runs.image(run["nearclip"], "near-plane clip polygons (the paper's fix)"),
+                runs.image(run["zfail"], "z-fail (Carmack's reverse, later work)")])]

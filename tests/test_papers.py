@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from harness import cli, registry, report, results
-from papers import claims, common, gmnpr, mdsm, silhouette
+from papers import claims, common, gmnpr, mdsm, silhouette, sv
 
 ROOT = Path(__file__).resolve().parent.parent
 REQUIRED = {"paper": str, "where": str, "claim": str, "reported": str, "measured": str,
@@ -30,30 +30,128 @@ def _row(technique, scene="s", width=256, params=None, **values):
 
 
 def _write(root: Path, name: str, rows: list[dict]) -> common.Runs:
-    (root / name).mkdir(parents=True)
+    (root / name).mkdir(parents=True, exist_ok=True)
     results.write_rows(root / name, rows)
     return common.Runs(root, name)
 
 
-@pytest.mark.parametrize("mdsm_times, agrees", [
-    # f / 512^2 of each view: 0.25, 1.0, 1.5, 4.0; PCF(16, 1) at 10, 40, 60, 160 ms
-    ([8, 50, 50, 100], True),    # cheaper from f = 1.5 x res^2: within a factor 2 of 1.28
-    ([8, 30, 50, 100], False),  # cheaper from 0.25: too early (factor 5)
-    ([20, 50, 70, 170], False),  # never cheaper: a reversed ordering
+def _with_arrays(root: Path, name: str, row: dict, v: np.ndarray, ref: np.ndarray) -> dict:
+    """``row`` with its V and reference arrays written under ``root/name`` (all covered)."""
+    covered = np.ones(v.shape, bool)
+    row = {**row, "array": f"arrays/{re.sub(r'[^a-z0-9]+', '-', row['run_id'])}.npz"}
+    results.save_arrays(root / name / row["array"], visibility=v.astype(np.float32), covered=covered)
+    reference = f"arrays/{row['scene']}/reference.npz"
+    results.save_arrays(root / name / reference, visibility=ref.astype(np.float32), covered=covered)
+    return {**row, "reference_array": reference}
+
+
+def _soft_edge(width_px: int, size: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """A reference shadow edge down the middle of a size^2 image (left dark, right lit) and a V
+    that ramps across it over ``width_px`` (even) fractional columns: edge width = width_px x
+    size."""
+    ref = np.zeros((size, size))
+    ref[:, size // 2:] = 1.0
+    x = np.arange(size) + 0.5 - size / 2
+    v = np.clip(x / width_px + 0.5, 0.0, 1.0)
+    return np.broadcast_to(v, (size, size)).copy(), ref
+
+
+@pytest.mark.parametrize("widths, agrees, reason", [
+    # edge width in fractional columns of PCF(16, 1), the 2-SM PCF(9, 2), the control PCF(9, 1)
+    ({(16, 1): 10, (9, 2): 10, (9, 1): 6}, True, ""),
+    ({(16, 1): 10, (9, 2): 14, (9, 1): 6}, False, "off by more than the tolerance"),
+    # an n-SM that ignores its extra depths: PCF(9, 2) == PCF(9, 1), within 17 % of PCF(16, 1)
+    ({(16, 1): 12, (9, 2): 10, (9, 1): 10}, False, "the control is as close"),
 ])
-def test_mdsm_crossover_decided_from_times(tmp_path, mdsm_times, agrees):
-    widths, fractions, pcf_times = [256, 512, 640, 1024], [0.25, 1.0, 1.5, 4.0], [10, 40, 60, 160]
+def test_mdsm_equivalence_is_in_edge_width_with_a_control(tmp_path, widths, agrees, reason):
+    """Catches the claim without its control (an n-SM ignoring its extra depths passes), and
+    edge width counted outside the edge band (the 2-SM's acne, fractional V far from the edge,
+    would widen it past the tolerance)."""
     rows = []
-    for w, frac, tp, tm in zip(widths, fractions, pcf_times, mdsm_times):
-        rows.append(_row("pcf", width=w, params={"k": 16, "res": 512}, time_ms=tp))
-        rows.append(_row("mdsm", width=w, params={"k": 9, "n": 2, "res": 512}, time_ms=tm,
-                         shaded_px=frac * 512**2))
-    (claim,) = mdsm.crossover_claims(_write(tmp_path, "mdsm_crossover", rows))
+    for (k, n), width in widths.items():
+        v, ref = _soft_edge(width)
+        if (k, n) == (9, 2):
+            v[::2, :12] = 0.5  # acne on the dark side, beyond 8 px of the edge
+        rows.append(_with_arrays(tmp_path, "mdsm", _row(
+            "mdsm", "pins", params={**mdsm.TABLE, "k": k, "n": n}, edge_mae=0.1, levels=k * n + 1),
+            v, ref))
+    claim = mdsm.equivalence(_write(tmp_path, "mdsm", rows), "Figure 7", "pins", [(16, 9, 2)], "r")
     assert claim.agrees is agrees
-    assert bool(claim.why_not) is not agrees
-    if mdsm_times[-1] > pcf_times[-1]:
-        assert "reversed" in claim.why_not
+    assert reason in claim.why_not
+    assert "edge width" in claim.claim and "not accuracy" in claim.claim
+    assert [r[1] for r in claim.table["rows"]] == [64 * widths[k] for k in [(16, 1), (9, 2), (9, 1)]]
+
+
+# f / 512^2 of each view: 0.25, 1.0, 1.5, 4.0 (equation 6's crossover: 9 / 7 = 1.29)
+CROSSOVER_VIEWS = [(256, 0.25), (512, 1.0), (640, 1.5), (1024, 4.0)]
+
+
+def _crossover_rows(views, select_per_texel=9, mdsm_times=None):
+    rows, res = [], 512
+    for i, (w, frac) in enumerate(views):
+        f = frac * res**2
+        rows.append(_row("pcf", width=w, params={"k": 16, "res": res}, time_ms=10.0 * (i + 1),
+                         fetches_per_px=16.0, renderer="test"))
+        rows.append(_row("mdsm", width=w, params={"k": 9, "n": 2, "res": res, "q": 9},
+                         time_ms=(mdsm_times or [20.0 * (i + 1) for i in range(len(views))])[i],
+                         fetches_per_px=9.0, shaded_px=f, select_fetches=select_per_texel * res**2,
+                         shading_fetches=9 * f, renderer="test"))
+    return rows
+
+
+@pytest.mark.parametrize("views, select_per_texel, agrees, reason", [
+    (CROSSOVER_VIEWS, 9, True, ""),  # 9 res^2 + 9 f < 16 f from f = 1.29 res^2
+    (CROSSOVER_VIEWS, 18, False, "not at the paper's 1.28"),  # twice the selection: 2.57
+    (CROSSOVER_VIEWS[:2], 9, False, "never fall below"),  # the views stop short of 1.28
+])
+def test_mdsm_crossover_judged_on_counted_fetches(tmp_path, views, select_per_texel, agrees,
+                                                  reason):
+    """Catches the crossover judged on time: here MDSM is never faster (twice PCF's time at
+    every view), yet its counted fetches cross where equation 6 says; and fetch counts that
+    follow another equation (twice the selection fetches) must not agree."""
+    runs = _write(tmp_path, "mdsm_crossover", _crossover_rows(views, select_per_texel))
+    (claim,) = mdsm.crossover_claims(runs)
+    assert claim.agrees is agrees
+    assert reason in claim.why_not
+    assert "MDSM never faster" in claim.measured  # the timings, reported beside
+    if agrees:
+        assert "cross between f = 1 and 1.5 x res^2 (interpolated 1.29)" in claim.measured
     assert [s["name"] for s in claim.plot["series"]][:2] == ["PCF(16, 1)", "MDSM(9, 2)"]
+    assert claim.plot["series"][1]["y"][0] == pytest.approx((select_per_texel + 9 * 0.25) * 0.262144)
+
+
+@pytest.mark.parametrize("wrong, agrees", [
+    ({"zpass": 60.0, "nearclip": 0.1, "zfail": 0.1}, True),
+    ({"zpass": 60.0, "nearclip": 40.0, "zfail": 0.1}, False),  # the paper's fix miscounts
+    ({"zpass": 0.1, "nearclip": 0.1, "zfail": 0.1}, False),  # the camera is not inside
+])
+def test_sv_camera_claim_checks_the_papers_near_plane_fix(tmp_path, wrong, agrees):
+    """Catches the claim of section 3.2 judged on z-fail alone (later work, not the paper's):
+    a miscounting near-plane clip would then agree."""
+    rows = [_row("sv", "camera_in_shadow", params={"method": m}, wrong_pct=w)
+            for m, w in wrong.items()]
+    (claim,) = sv.camera_claims(_write(tmp_path, "sv_camera", rows))
+    assert claim.where == "Section 3.2" and claim.agrees is agrees
+    assert "z-fail (later work, not the paper's)" in claim.measured
+    assert [i["label"].split()[0] for i in claim.images] == ["z-pass,", "near-plane", "z-fail"]
+
+
+@pytest.mark.parametrize("quarter_ms, agrees", [(10.0, True), (40.0, False)])
+def test_sv_quarter_mask_speedup(tmp_path, quarter_ms, agrees):
+    """Section 5's 10.2 -> 23.6 Hz (x 2.31) at 1024^2 within a factor 2: the full alpha frame
+    (10 ms scene + 40 ms shadows) against a quarter mask at 10 + 10 ms is x 2.5; at 10 + 40 ms,
+    no faster. Catches the speedup taken the other way round (quarter over full: x 0.4)."""
+    full = {"screen": 40.0, "alpha": 40.0, "stencil": 45.0, "half": 20.0, "quarter": quarter_ms}
+    rows = [_row("sv", "castle", 1024, params={**sv.METHODS.get(m, {}), "buffer": "alpha",
+                                               "mask_res": m if m in ("half", "quarter") else "full"}
+                 if m in ("alpha", "half", "quarter") else sv.METHODS[m],
+                 scene_ms=10.0, time_ms=t, mae=0.001,
+                 passes=[{"name": "volumes", "ms": 1.0, "fragments": 100 if m == "half" else 400}])
+            for m, t in full.items()]
+    found = {c.where: c for c in sv.table2_claims(_write(tmp_path, "sv", rows))}
+    assert found["Section 5"].agrees is agrees
+    assert f"x {'2.5' if agrees else '1'}" in found["Section 5"].measured
+    assert found["Figure 6"].agrees  # a quarter of the volume fragments, small error
 
 
 def test_silhouette_table_claims_compare_with_the_paper(tmp_path):
@@ -138,9 +236,10 @@ def test_papers_json_schema_and_page(mdsm_run):
         assert f'id="claim-{i}"' in page
     sources = re.findall(r'<img src="([^"]+)"', page)
     assert sources and all((mdsm_run / s).is_file() for s in sources)
-    # the Figure 6 images: the reference and the four runs side by side, each with a crop
+    # the Figure 6 images: the reference and the five runs (two pairs and their controls, one
+    # shared) side by side, each with a crop
     fig6 = next(i for i, c in enumerate(found) if c.where == "Figure 6")
-    assert sum(s.startswith(f"images/papers/claim-{fig6}/") for s in sources) == 10
+    assert sum(s.startswith(f"images/papers/claim-{fig6}/") for s in sources) == 12
     first = np.asarray(Image.open(mdsm_run / f"images/papers/claim-{fig6}/1.png"))
     assert first.shape[:2] == (256, 256)
 
