@@ -14,8 +14,10 @@ import warnings
 from pathlib import Path
 
 from .config import ConfigError, square_number
+from .timing import NOISY_CONTENTION, STATISTICS
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
+NOISY_RUNS_WARNING = 0.05  # the summary warns when more than this share of runs is noisy
 
 
 def _csv_list(text: str) -> list[str]:
@@ -92,7 +94,8 @@ def cmd_run(args) -> int:
         experiment_path=args.experiment, scene_file=args.scene_file,
         scenes=_csv_list(args.scenes) if args.scenes else None,
         techniques=_csv_list(args.techniques) if args.techniques else None,
-        overrides=runner.parse_overrides(args.set or []))
+        overrides=runner.parse_overrides(args.set or []),
+        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
     renderer = None
     if args.executor == "dask":
         from .distributed import dask_renderer
@@ -103,7 +106,8 @@ def cmd_run(args) -> int:
         raise ConfigError("--scheduler goes with --executor dask")
     started = time.perf_counter()
     code = runner.execute(plan, args.out, platform_name=args.platform,
-                          progress=not args.quiet, renderer=renderer)
+                          progress=not args.quiet, renderer=renderer,
+                          retime_noisy=args.retime_noisy)
     rows = [r for r in runner.results.read_rows(args.out)]
     ids = {r.run_id for r in plan.runs}
     mine = [r for r in rows if r["run_id"] in ids]
@@ -113,6 +117,13 @@ def cmd_run(args) -> int:
           f"skipped, {counts['error']} failed; {rendered} rendered now, "
           f"{len(mine) - rendered} already done) in {time.perf_counter() - started:.1f} s",
           file=sys.stderr)
+    timed = [r for r in mine if r["status"] == "ok" and r.get("noisy", "") != ""]
+    noisy = sum(r["noisy"] == "1" for r in timed)
+    if noisy > NOISY_RUNS_WARNING * len(timed):
+        print(f"warning: {noisy} of {len(timed)} runs are noisy (other processes used more than "
+              f"{NOISY_CONTENTION:.0%} of the CPU while they were timed: cpu_contention); their "
+              f"times are inflated: run again on a quiet machine, or add --retime-noisy",
+              file=sys.stderr)
     for r in mine:
         if r["status"] == "error":
             print(f"  failed: {r['scene']} {r['technique']} {r['params']}: {r['error']}",
@@ -188,6 +199,16 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--workers", type=int, default=2,
                    help="with --executor dask and no --scheduler: LocalCluster workers "
                         "(one thread each; default 2)")
+    q.add_argument("--frames", metavar="N",
+                   help="measured frames per run, after the warm-up (default: the experiment's, "
+                        "else 15)")
+    q.add_argument("--warmup", metavar="N",
+                   help="unmeasured frames before them (default: the experiment's, else 2)")
+    q.add_argument("--statistics", metavar="METHOD",
+                   help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
+                        "(default: the experiment's, else order)")
+    q.add_argument("--retime-noisy", action="store_true",
+                   help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_run)
 

@@ -406,8 +406,10 @@ class Experiment(Strict):
     # technique name -> grid(s); or "all": every registered technique at its defaults
     techniques: Union[Literal["all"], dict[str, Union[Grid, list[Grid]]]]
     resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
-    frames: int = Field(5, ge=1, le=1000)
+    frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
     warmup: int = Field(2, ge=0, le=1000)
+    # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
+    statistics: Literal["order", "bootstrap"] = "order"
     reference: ReferenceSettings = ReferenceSettings()
 
     @field_validator("scenes")
@@ -435,6 +437,28 @@ class Experiment(Strict):
         if v is not None and (not v or not all(16 <= x <= 8192 for r in v for x in r)):
             raise ValueError("must be a non-empty list of [width, height] in [16, 8192]")
         return v
+
+
+TIMING_OPTIONS = ("frames", "warmup", "statistics")
+
+
+def with_timing(exp: Experiment, **options) -> Experiment:
+    """The experiment with command-line timing options (``frames``, ``warmup``,
+    ``statistics``; None keeps the experiment's) validated as if the file had them; a bad
+    value is a ConfigError naming the option, e.g. ``--frames: must be >= 1, got 0``."""
+    given = {k: v for k, v in options.items() if v is not None}
+    unknown = set(given) - set(TIMING_OPTIONS)
+    if unknown:
+        raise ValueError(f"not timing options: {sorted(unknown)}")
+    if not given:
+        return exp
+    try:
+        return Experiment.model_validate({**exp.model_dump(), **given})
+    except ValidationError as e:
+        first = e.errors()[0]
+        option = str(first["loc"][0])
+        msg = first["msg"].removeprefix("Value error, ")
+        raise ConfigError(f"--{option}: {msg}, got {given.get(option)!r}") from None
 
 
 def load_experiment(path: str | Path) -> tuple[Experiment, object]:

@@ -1,9 +1,12 @@
 """Distributed sweeps on Dask: workers render and score runs; the client alone writes.
 
-Each worker process owns its GL context, its frames and its reference cache. A run is one
-task; the task returns the run's row and arrays, and the client records them exactly as the
-serial runner does (same ids, same files, atomic results.csv), so a sweep killed at the
-client or at a worker resumes the same way: runs already in results.csv are not sent again.
+Each worker process owns its GL context, its frames and its reference cache. A task is a
+piece of one scene and resolution (at most ``TASK_RUNS`` runs), which the worker measures in
+interleaved rounds exactly as the serial runner does (:func:`harness.runner.run_group`); it
+returns the runs' rows and arrays, and the client records them as the serial runner does
+(same ids, same files, atomic results.csv), so a sweep killed at the client or at a worker
+resumes the same way: runs already in results.csv are not sent again (a task killed midway
+is rendered again whole).
 
 Timing runs must not share a worker: a LocalCluster gets one thread per worker; an external
 cluster's workers must run one thread each (``dask worker --nthreads 1``) or declare the
@@ -17,6 +20,10 @@ from pathlib import Path
 
 from .config import ConfigError
 from .runner import Plan, RunSpec, record_run
+
+# Runs per task: interleaving needs several runs in one worker, spreading the sweep needs
+# several tasks per worker.
+TASK_RUNS = 8
 
 _worker_frames: dict = {}
 
@@ -36,20 +43,39 @@ def _frame_on_worker(scene, frames: int, warmup: int):
     return _worker_frames[key]
 
 
-def run_on_worker(spec: RunSpec, scene, platform: str | None):
-    """One run on this worker: (row, its arrays or None, the reference)."""
+def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
+    """Runs of one scene and resolution on this worker, in interleaved rounds:
+    ([(row, its arrays or None), ...] in the order of ``specs``, the reference)."""
     from distributed import get_worker
 
     from .gl.context import get_context
     from .reference import compute_reference
-    from .runner import run_one
+    from .runner import run_group
 
+    first = specs[0]
     context = get_context(platform)
-    reference = compute_reference(scene, samples=spec.samples, seed=spec.ref_seed)
-    frame, scene_ms, frags_scene = _frame_on_worker(scene, spec.frames, spec.warmup)
-    row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene, context.renderer)
-    row["worker"] = get_worker().address
-    return row, arrays, reference
+    reference = compute_reference(scene, samples=first.samples, seed=first.ref_seed)
+    frame, scene_ms, frags_scene = _frame_on_worker(scene, first.frames, first.warmup)
+    done = {}
+    for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
+                                       context.renderer):
+        row["worker"] = get_worker().address
+        done[spec.run_id] = (row, arrays)
+    return [done[spec.run_id] for spec in specs], reference
+
+
+def tasks_of(pending: list[RunSpec]) -> list[list[RunSpec]]:
+    """The pending runs cut into tasks: each group of one scene and resolution (and reference
+    settings) in near-equal pieces of at most TASK_RUNS runs."""
+    groups: dict[tuple, list[RunSpec]] = {}
+    for spec in pending:
+        groups.setdefault((spec.scene, spec.width, spec.height, spec.samples, spec.ref_seed),
+                          []).append(spec)
+    tasks = []
+    for specs in groups.values():
+        pieces = -(-len(specs) // TASK_RUNS)
+        tasks.extend(specs[i::pieces] for i in range(pieces))
+    return tasks
 
 
 def _task_options(client) -> dict:
@@ -87,21 +113,22 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
         client = Client(cluster or scheduler)
         try:
             options = _task_options(client)
-            futures = [client.submit(run_on_worker, spec,
-                                     plan.scenes[spec.scene].with_resolution(spec.width,
-                                                                             spec.height),
-                                     platform_name, key=f"run-{spec.run_id}", pure=False,
+            tasks = tasks_of(pending)
+            futures = [client.submit(run_on_worker, specs,
+                                     plan.scenes[specs[0].scene].with_resolution(
+                                         specs[0].width, specs[0].height),
+                                     platform_name, key=f"runs-{specs[0].run_id}", pure=False,
                                      **options)
-                       for spec in pending]
-            spec_of = {f.key: spec for f, spec in zip(futures, pending)}
+                       for specs in tasks]
+            specs_of = {f.key: specs for f, specs in zip(futures, tasks)}
             bar.set_description_str(f"{len(client.scheduler_info()['workers'])} Dask workers")
             for future in as_completed(futures):
-                spec = spec_of[future.key]
-                row, arrays, reference = future.result()
-                record_run(out_dir, spec, row, arrays, reference)
-                bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
-                                        f"{spec.technique} ({row['worker']})")
-                yield spec, row
+                finished, reference = future.result()
+                for spec, (row, arrays) in zip(specs_of[future.key], finished):
+                    record_run(out_dir, spec, row, arrays, reference)
+                    bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
+                                            f"{spec.technique} ({row['worker']})")
+                    yield spec, row
         finally:
             client.close()
             if cluster is not None:

@@ -1,9 +1,9 @@
 """Expand sweeps into runs, run them, append one record per run. Resumable.
 
 Each run has a stable id (scene description and resolution, technique, parameters, the
-technique's code version, frames, warm-up and reference settings). Runs whose id is already
-in ``DIR/results.csv`` are skipped, so a killed sweep restarted with the same arguments
-finishes the rest without duplicates.
+technique's code version, frames, warm-up, interval statistics and reference settings). Runs
+whose id is already in ``DIR/results.csv`` are skipped, so a killed sweep restarted with the
+same arguments finishes the rest without duplicates.
 """
 
 from __future__ import annotations
@@ -26,9 +26,11 @@ import yaml
 from pydantic import ValidationError
 
 from . import config as cfg
-from . import metrics, registry, results
-from .gl.measure import default_timer
+from . import cost_model, metrics, registry, results
+from .gl import measure as pass_measure
+from .gl.measure import COUNTERS, default_timer
 from .scene import BuiltScene, build_scene
+from .timing import CONFIDENCE, NOISY_CONTENTION, cpu_sample, median_interval, others_time
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,7 @@ class RunSpec:
     ref_seed: int = 0
     scene_key: str = ""
     code_version: str = ""
+    statistics: str = "order"  # how the median's interval is computed (harness.timing)
 
     @property
     def params_json(self) -> str:
@@ -53,8 +56,8 @@ class RunSpec:
     def run_id(self) -> str:
         text = "|".join(map(str, (self.scene, self.scene_key, self.width, self.height,
                                   self.technique, self.params_json, self.code_version,
-                                  self.frames, self.warmup, self.samples, self.ref_seed,
-                                  metrics.VERSION)))
+                                  self.frames, self.warmup, self.statistics, self.samples,
+                                  self.ref_seed, metrics.VERSION)))
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -98,8 +101,12 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
 
 
 def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str] | None,
-              techniques: list[str] | None, overrides: dict[str, dict]) -> Plan:
-    """Everything validated up front: a bad input raises ConfigError before any output."""
+              techniques: list[str] | None, overrides: dict[str, dict],
+              timing: dict | None = None) -> Plan:
+    """Everything validated up front: a bad input raises ConfigError before any output.
+
+    ``timing``: command-line ``frames``, ``warmup``, ``statistics`` replacing the
+    experiment's (see :func:`harness.config.with_timing`)."""
     if experiment_path:
         exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
         exp_path = Path(experiment_path)
@@ -111,6 +118,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     if not experiment_path:
         exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
         node, exp_path, exp_text = None, Path("(command line)"), ""
+    exp = cfg.with_timing(exp, **(timing or {}))
 
     wanted_scenes = list(all_scenes) if exp.scenes == "all" else list(exp.scenes)
     for i, name in enumerate(wanted_scenes):
@@ -168,7 +176,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                                                  where if experiment_path else "--set")
                         spec = RunSpec(scene_name, tech, params, width, height, exp.frames,
                                        exp.warmup, exp.reference.samples, exp.reference.seed,
-                                       scene_at.key, version)
+                                       scene_at.key, version, exp.statistics)
                         if spec.run_id not in seen:
                             seen.add(spec.run_id)
                             runs.append(spec)
@@ -250,6 +258,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
     invocations = [i for i in (previous.get("invocations", []) if same else [])
                    if i.get("started") != session["started"]] + [session]
     complete = session["status"] == "complete"
+    counters_missing = pass_measure.pipeline_statistics_missing()
     manifest = {
         "shadowbench": _version("shadowbench"),
         "versions": {name: _version(dist) for name, dist in (
@@ -259,7 +268,13 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "python": sys.version.split()[0],
         "gl": {"platform": context.platform, "vendor": context.vendor,
                "renderer": context.renderer, "version": context.version,
-               "timer": default_timer(context.renderer)},
+               "timer": default_timer(context.renderer),
+               # the work counters (vertex_invocations, ...): empty columns where unavailable
+               "pipeline_statistics": ({"available": False, "why": counters_missing}
+                                       if counters_missing else {"available": True})},
+        "timing": {"interval": f"{CONFIDENCE:.0%} interval of the median",
+                   "noisy_contention": NOISY_CONTENTION, "batch_bytes": BATCH_BYTES,
+                   "batch_runs": BATCH_RUNS},
         "gpu": _nvidia_gpus(),
         "cpu": _cpu(),
         "git_commit": _git_commit(),
@@ -286,62 +301,198 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {' '.join(str(e).split())}"[:500]
 
 
-def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
-            renderer: str) -> tuple[dict, dict[str, np.ndarray] | None]:
-    """Run one technique on a prepared frame: its row and the arrays to store with it (V,
-    coverage and the technique's diagnostic maps as ``map_<name>``; None unless it ran).
+# Runs of one scene and resolution are measured in interleaved rounds (each round renders one
+# measured frame of every run of a batch), so a burst of load from other processes spreads
+# over all of them instead of landing on one. A batch keeps its runs prepared at once, so it
+# closes when its runs' maps (their mem_bytes, known after the first frame) reach
+# BATCH_BYTES or it holds BATCH_RUNS runs: memory stays within about one batch (a 4096^2
+# float map is 64 MiB) whatever the sweep.
+BATCH_BYTES = 256 * 2**20
+BATCH_RUNS = 16
 
-    Never raises for a technique's failure: that is the row's status and error."""
-    from .technique import NotApplicable, reset_gl_state
 
-    row = {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
-           "technique": spec.technique, "params": spec.params_json, "width": spec.width,
-           "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
-           "scene_ms": scene_ms, "frags_scene": frags_scene, "renderer": renderer,
-           "code_version": spec.code_version, "ref_samples": spec.samples,
-           "ref_seconds": reference.seconds}
-    cls = registry.get(spec.technique)
-    technique = None
-    frame.new_meter()
+@dataclass
+class _Timed:
+    """A run between prepare and release: its row so far, technique, pass record and the
+    output of its last frame."""
+
+    spec: RunSpec
+    row: dict
+    meter: object  # harness.gl.measure.PassMeter, the run's own
+    technique: object = None
+    output: object = None  # harness.technique.ShadowOutput
+    measured: int = 0  # measured frames rendered so far
+
+    @property
+    def alive(self) -> bool:
+        return "status" not in self.row
+
+
+def _render(timed: _Timed, frame, measuring: bool) -> None:
+    from .technique import reset_gl_state
+
     try:
-        technique = cls(cls.Params(**spec.params))
-        technique.prepare(frame)
-        for i in range(spec.warmup + spec.frames):
-            frame.meter.new_frame(measuring=i >= spec.warmup)
-            output = technique.render(frame)
+        with frame.metered(timed.meter):
+            timed.meter.new_frame(measuring)
+            timed.output = timed.technique.render(frame)
+        timed.measured += measuring
+    finally:
+        reset_gl_state()  # each run's frame starts from the state the harness assumes
+
+
+def _release(timed: _Timed) -> None:
+    from .technique import reset_gl_state
+
+    if timed.technique is not None:
+        try:
+            timed.technique.release()
+        except Exception as e:  # the run's result stands; a failed release only leaks
+            timed.row["warnings"] = f"release failed: {_one_line(e)}"
+        timed.technique = None
+    timed.meter.release()
+    reset_gl_state()
+
+
+def _attempt(timed: _Timed, step, *args) -> bool:
+    """``step(*args)``; a technique's failure ends its run (status and error in its row,
+    resources released), never the sweep."""
+    from .technique import NotApplicable
+
+    try:
+        step(*args)
+        return True
     except NotApplicable as e:
-        row.update(status="skipped", error=str(e))
-        return row, None
+        timed.row.update(status="skipped", error=str(e))
     except Exception as e:  # a technique's failure is its row's, not the sweep's
-        row.update(status="error", error=_one_line(e))
+        timed.row.update(status="error", error=_one_line(e))
         if os.environ.get("SHADOWBENCH_DEBUG"):
             traceback.print_exc()
-        return row, None
-    finally:
-        if technique is not None:
-            try:
-                technique.release()
-            except Exception as e:  # the run's result stands; a failed release only leaks
-                row["warnings"] = f"release failed: {_one_line(e)}"
-        reset_gl_state()
+    _release(timed)
+    return False
 
+
+def _start(spec: RunSpec, frame, row: dict) -> _Timed:
+    """Prepare the run and render its warm-up frames (with no warm-up, its first measured
+    frame): its map bytes are then known."""
+    cls = registry.get(spec.technique)
+    timed = _Timed(spec, row, frame.new_meter())
+
+    def prepare():
+        timed.technique = cls(cls.Params(**spec.params))
+        timed.technique.prepare(frame)
+        for _ in range(spec.warmup):
+            _render(timed, frame, measuring=False)
+
+    if _attempt(timed, prepare) and spec.warmup == 0:
+        _measure_round([timed], frame, 0)
+    return timed
+
+
+def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
+    """One measured frame of each run, starting at a position that turns each round (no run
+    always follows the same one). The CPU time other processes used during the round is
+    attributed to each run in proportion to its share of the round's wall time."""
+    order = batch[turn % len(batch):] + batch[:turn % len(batch)]
+    walls = []
+    before, began = cpu_sample(), time.perf_counter()
+    for timed in order:
+        start = time.perf_counter()
+        if _attempt(timed, _render, timed, frame, True):
+            walls.append((timed, time.perf_counter() - start))
+    round_s, after = time.perf_counter() - began, cpu_sample()
+    if before is None or after is None or round_s <= 0:
+        return
+    others_s, capacity_s = others_time(before, after)
+    for timed, wall in walls:
+        timed.meter.add_load(others_s * wall / round_s, capacity_s * wall / round_s)
+
+
+def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
+              renderer: str):
+    """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
+    interleaved rounds; yields ``(spec, row, arrays)`` as each run finishes (arrays None
+    unless it ran). Never raises for a technique's failure: that is the row's status."""
+    queue = list(specs)
+    while queue:
+        batch, batch_bytes = [], 0
+        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
+            spec = queue.pop(0)
+            timed = _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
+                                                        renderer))
+            if not timed.alive:
+                yield spec, timed.row, None
+                continue
+            batch.append(timed)
+            batch_bytes += timed.output.mem_bytes
+        turn = 0
+        while live := [t for t in batch if t.alive and t.measured < t.spec.frames]:
+            _measure_round(live, frame, turn)
+            turn += 1
+        for timed in batch:
+            if not timed.alive:
+                yield timed.spec, timed.row, None
+                continue
+            _release(timed)
+            yield (timed.spec, *_score(timed, frame, reference))
+
+
+def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
+            renderer: str) -> tuple[dict, dict[str, np.ndarray] | None]:
+    """Run one technique alone on a prepared frame: its row and the arrays to store with it
+    (V, coverage and the technique's diagnostic maps as ``map_<name>``; None unless it ran).
+
+    Never raises for a technique's failure: that is the row's status and error."""
+    ((_, row, arrays),) = run_group([spec], frame, reference, scene_ms, frags_scene, renderer)
+    return row, arrays
+
+
+def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
+                   renderer: str) -> dict:
+    return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
+            "technique": spec.technique, "params": spec.params_json, "width": spec.width,
+            "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
+            "scene_ms": scene_ms, "frags_scene": frags_scene, "renderer": renderer,
+            "code_version": spec.code_version, "ref_samples": spec.samples,
+            "ref_seconds": reference.seconds}
+
+
+def _timing_columns(timed: _Timed) -> dict:
+    """Median frame time with its interval, per-pass times and work counters, machine load."""
+    meter, method = timed.meter, timed.spec.statistics
+    totals = meter.frame_totals_ms
+    time_ms, low, high = median_interval(totals, method=method)
+    passes = meter.passes(method)
+    load = meter.cpu_contention
+    return dict(
+        time_ms=time_ms, time_ms_ci_low=low, time_ms_ci_high=high, time_ms_min=min(totals),
+        time_ms_max=max(totals), frame_ms=[round(t, 4) for t in totals],
+        cpu_contention=None if load is None else round(load, 4),
+        noisy=None if load is None else int(load > NOISY_CONTENTION),
+        **{c: sum(getattr(p, c) for p in passes) if meter.counts else None for c in COUNTERS},
+        passes=[{"name": p.name, "ms": round(p.ms, 4), "ms_ci_low": round(p.ms_ci_low, 4),
+                 "ms_ci_high": round(p.ms_ci_high, 4), "fragments": p.fragments,
+                 **({c: getattr(p, c) for c in COUNTERS} if meter.counts else {})}
+                for p in passes])
+
+
+def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
+    """The finished run's row (timing, counters, metrics) and arrays, from its last frame."""
+    row, output = timed.row, timed.output
     v = output.visibility
     mask = frame.compared_pixels(reference.covered)
-    totals = frame.meter.frame_totals_ms
-    passes = frame.meter.passes()
+    row.update(_timing_columns(timed))
     frags_shadow = (output.shadow_fragments if output.shadow_fragments is not None
-                    else sum(p.fragments for p in passes))
+                    else sum(p["fragments"] for p in row["passes"]))
     row.update(
-        time_ms=float(np.median(totals)), time_ms_min=min(totals), time_ms_max=max(totals),
-        frags_shadow=frags_shadow, overdraw=frags_shadow / max(frags_scene, 1),
+        frags_shadow=frags_shadow, overdraw=frags_shadow / max(row["frags_scene"], 1),
         mem_bytes=output.mem_bytes, fetches_per_px=output.fetches_per_px,
-        passes=[{"name": p.name, "ms": round(p.ms, 4), "fragments": p.fragments}
-                for p in passes],
+        covered_px=int(frame.arrays.covered.sum()),
         nonfinite=output.nonfinite + metrics.nonfinite(v),
         v_min=float(np.nanmin(v)) if v.size else None,
         v_max=float(np.nanmax(v)) if v.size else None,
         warnings="; ".join(output.warnings + ([row["warnings"]] if "warnings" in row else [])),
     )
+    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)
     v_clean = np.nan_to_num(v, nan=0.5, posinf=1.0, neginf=0.0)
     ref_v = reference.visibility
     row.update(
@@ -403,9 +554,20 @@ def _time_left(elapsed_s: float, done: float, left: float) -> str:
     return f"about {seconds // 60}:{seconds % 60:02d} left"
 
 
+def noisy_runs(plan: Plan, out_dir: str | Path) -> list[RunSpec]:
+    """The plan's runs recorded ok in DIR but timed while the machine was busy (``noisy``)."""
+    noisy = {r["run_id"] for r in results.read_rows(out_dir)
+             if r["status"] == "ok" and r.get("noisy") == "1"}
+    return [spec for spec in plan.runs if spec.run_id in noisy]
+
+
 def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
-            progress: bool = True, renderer=None) -> int:
+            progress: bool = True, renderer=None, retime_noisy: bool = False) -> int:
     """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed).
+
+    ``retime_noisy``: then measure again the runs whose row says ``noisy`` (rendered anew, in
+    interleaved rounds among themselves; their rows are replaced: the technique's output is
+    deterministic, so only the timing and load columns change).
 
     ``renderer(plan, pending, out_dir, context, bar)`` renders and records the pending runs,
     yielding ``(spec, row)`` as each is recorded: :func:`render_serial` (the default) in this
@@ -447,6 +609,14 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
                     + (f", {_time_left(time.monotonic() - clock, cost_done, cost_left)}"
                        if left else ""), refresh=False)
                 bar.update(1)
+            if retime_noisy:
+                again = noisy_runs(plan, out_dir)
+                session["runs_retimed"] = len(again)
+                bar.reset(total=len(again))
+                bar.set_postfix_str("retiming the noisy runs", refresh=False)
+                for _, row in renderer(plan, again, out_dir, context, bar):
+                    failed += row["status"] == "error"
+                    bar.update(1)
             session["status"] = "complete"
         except KeyboardInterrupt:
             session["status"] = "interrupted"
@@ -483,7 +653,8 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
 
 def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
     """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
-    shared), appending each row as it finishes; yields (spec, row) for each."""
+    shared, its runs measured in interleaved rounds: :func:`run_group`), appending each row
+    as it finishes; yields (spec, row) for each."""
     from .reference import compute_reference
     from .technique import Frame
 
@@ -499,10 +670,10 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
         try:
             frames, warmup = specs[0].frames, specs[0].warmup
             scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
-            for spec in specs:
+            bar.set_description_str(f"{scene_name} {width}x{height}: {len(specs)} runs in rounds")
+            for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
+                                               context.renderer):
                 bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
-                row, arrays = run_one(spec, frame, reference, scene_ms, frags_scene,
-                                 context.renderer)
                 record_run(out_dir, spec, row, arrays, reference)
                 yield spec, row
         finally:

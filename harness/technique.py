@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import inspect
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -23,6 +24,7 @@ from . import metrics
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
+from .gl import measure as pass_measure
 from .gl.measure import PassMeter, default_timer
 from .gl.shaders import HARNESS_GLSL, Program
 from .scene import BuiltScene
@@ -104,15 +106,25 @@ class Frame:
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
         self.timer = default_timer(GL.glGetString(GL.GL_RENDERER).decode())
-        self.meter = PassMeter(self.timer)
+        # why the driver cannot count pipeline statistics ('' where it can)
+        self.counters_missing = pass_measure.pipeline_statistics_missing()
+        self.meter = self.new_meter()
         self.gbuffer.render(self.geometry, self.camera.view_proj)
         self.arrays = self.gbuffer.read()
 
     def new_meter(self) -> PassMeter:
-        """Start a fresh pass record (one per run)."""
-        self.meter.release()
-        self.meter = PassMeter(self.timer)
-        return self.meter
+        """A fresh pass record (one per run; its owner releases it)."""
+        return PassMeter(self.timer, counters=not self.counters_missing)
+
+    @contextmanager
+    def metered(self, meter: PassMeter):
+        """Send :meth:`measure` to ``meter`` within the block: runs measured in interleaved
+        rounds each keep their own record."""
+        previous, self.meter = self.meter, meter
+        try:
+            yield meter
+        finally:
+            self.meter = previous
 
     def measure(self, name: str):
         """Context manager around one pass: times it and counts its fragments."""

@@ -15,7 +15,8 @@ import yaml
 EXE = str(Path(sys.executable).with_name("shadowbench"))
 SAME = ("run_id", "scene", "technique", "params", "width", "height", "mae", "rmse", "wrong_pct",
         "edge_mae", "levels", "ssim", "psnr", "nonfinite", "status", "frags_scene",
-        "frags_shadow", "mem_bytes", "fetches_per_px", "array")
+        "frags_shadow", "mem_bytes", "fetches_per_px", "array", "vertex_invocations",
+        "fragment_invocations", "primitives", "covered_px", "gpu_estimate_ms")
 
 
 @pytest.fixture
@@ -115,3 +116,22 @@ def test_threaded_external_workers_are_refused(sweep, tmp_path):
                      "--scheduler", cluster.scheduler_address])
     assert proc.returncode == 2
     assert "--nthreads 1" in proc.stderr
+
+
+def test_a_task_is_a_piece_of_one_scene_and_resolution():
+    """A worker can interleave only the runs one task gives it: each task holds runs of one
+    scene and resolution, at most TASK_RUNS of them, in near-equal pieces; every run once.
+
+    Catches: one task per run (nothing to interleave), or tasks mixing resolutions (a worker
+    would switch frames inside its rounds)."""
+    from harness.distributed import TASK_RUNS, tasks_of
+    from harness.runner import RunSpec
+
+    specs = ([RunSpec("a", "sm", {"res": 16 * (i + 1)}, 64, 48, 15, 2, 16) for i in range(20)]
+             + [RunSpec("a", "sm", {"res": 16}, 128, 96, 15, 2, 16)]
+             + [RunSpec("b", "pcf", {"k": k}, 64, 48, 15, 2, 16) for k in (1, 4, 9)])
+    tasks = tasks_of(specs)
+    assert sorted(len(t) for t in tasks) == [1, 3, 6, 7, 7]
+    assert all(len(t) <= TASK_RUNS for t in tasks)
+    assert all(len({(s.scene, s.width, s.height) for s in t}) == 1 for t in tasks)
+    assert sorted(s.run_id for t in tasks for s in t) == sorted(s.run_id for s in specs)

@@ -1,12 +1,16 @@
 """The Mitsuba reference: camera match, correctness against an independent ray caster, cache."""
 
+import dataclasses
+import errno
+import re
 import warnings
 
 import numpy as np
 import pytest
 
 from harness import reference as ref_mod
-from harness.reference import compute_reference
+from harness.reference import UntraceableSceneError, compute_reference
+from harness.scene import Light
 from harness.technique import Frame
 
 SHIPPED = ["sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long"]
@@ -42,32 +46,50 @@ def test_shipped_scenes_present():
     assert set(SHIPPED) <= set(all_scene_names())
 
 
-def _box_occludes(points, to_light, lo, hi):
-    """Independent slab test: does the ray p + t * to_light (t > 0) hit the box [lo, hi]?"""
+def _box_occludes(points, to_light, lo, hi, t_max=np.inf):
+    """Independent slab test: does the ray p + t * to_light (0 < t < t_max) hit the box?"""
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / to_light
         t0 = (lo - points) * inv
         t1 = (hi - points) * inv
     tmin = np.nanmax(np.minimum(t0, t1), axis=-1)
     tmax = np.nanmin(np.maximum(t0, t1), axis=-1)
-    return (tmax >= np.maximum(tmin, 1e-6))
+    return (tmax >= np.maximum(tmin, 1e-6)) & (tmin < t_max)
 
 
-def test_reference_matches_an_independent_ray_caster(scene_at, gl_context):
-    """box_plane: the box is the only occluder; its shadow on the plane by slab tests."""
+SPOT_ABOVE_THE_BOX = Light("spot", np.array([-0.3, 0.2, -1.0]) / np.linalg.norm([-0.3, 0.2, -1.0]),
+                           np.array([0.6, -0.4, 4.0]), 120.0, 4.0)
+
+
+@pytest.mark.parametrize("light", ["directional", "spot"])
+def test_reference_matches_an_independent_ray_caster(light, scene_at, gl_context):
+    """box_plane: the box is the only occluder; its shadow on the plane by slab tests, under
+    the scene's directional light and under a spot light above the box (the shadow ray ends at
+    the light). Catches a kernel that offsets samples or strata wrongly, tests the wrong
+    pixels' rays, or shoots the spot light's shadow ray along its axis instead of to its
+    position (seen failing: spawn_ray(-direction) for the spot light gives 0.975 agreement)."""
     scene = scene_at("box_plane", 192)
+    if light == "spot":
+        scene = dataclasses.replace(scene, light=SPOT_ABOVE_THE_BOX)
     arrays = gbuffer_arrays(scene)
-    ref = compute_reference(scene, samples=16)
+    ref = compute_reference(scene, samples=16, use_cache=False)
     on_plane = arrays.covered & ref.covered & (np.abs(arrays.position[..., 2]) < 1e-4)
-    to_light = np.broadcast_to(-scene.light.direction, arrays.position.shape)
-    shadowed = _box_occludes(arrays.position.astype(np.float64), to_light,
-                             np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 2.0]))
+    points = arrays.position.astype(np.float64)
+    if light == "spot":
+        to_light, t_max = scene.light.position - points, 1.0
+    else:
+        to_light, t_max = np.broadcast_to(-scene.light.direction, points.shape), np.inf
+    shadowed = _box_occludes(points, to_light, np.array([-0.5, -0.5, 1.0]),
+                             np.array([0.5, 0.5, 2.0]), t_max)
     expected = np.where(shadowed, 0.0, 1.0)
     interior = on_plane & ((ref.visibility == 0) | (ref.visibility == 1))
     assert shadowed[on_plane].mean() > 0.01
     assert (ref.visibility[interior] == expected[interior]).mean() > 0.999
     # boundary pixels are fractional in the reference: it averages over the pixel's area
-    assert ((ref.visibility > 0) & (ref.visibility < 1) & on_plane).sum() > 20
+    fractional = (ref.visibility > 0) & (ref.visibility < 1) & on_plane
+    assert fractional.sum() > 20
+    # ... with 16 stratified samples: V is a multiple of 1/16 where all samples hit the plane
+    assert np.allclose((ref.visibility[fractional] * 16) % 1, 0, atol=1e-5)
 
 
 def test_reference_is_cached(scene_at, tmp_path, monkeypatch):
@@ -121,15 +143,104 @@ def test_llvm_19_present_gives_llvm_variant(monkeypatch):
 
 
 def test_scalar_and_llvm_variants_agree(scene_at, tmp_path, monkeypatch):
+    """The scalar fallback runs the same per-pixel code with the same random numbers, so both
+    variants give the same V (one pixel of slack for float rounding on an edge; none seen here).
+    Catches a scalar path drawing other samples (seen failing: seeding the scalar PCG32 with
+    pixel + 1 changes 8 of these 4096 pixels; seeds 1, 2, 3 change 13 or 14)."""
     monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path))
-    scene = scene_at("box_plane", 24)
+    scene = scene_at("box_plane", 64)
     fast = compute_reference(scene, samples=4, variant="llvm_ad_rgb", use_cache=False)
     slow = compute_reference(scene, samples=4, variant="scalar_rgb", use_cache=False)
     ref_mod._mitsuba("llvm_ad_rgb")
     assert np.array_equal(fast.covered, slow.covered)
+    assert (fast.visibility != slow.visibility).sum() <= 1
     assert np.abs(fast.visibility - slow.visibility).max() <= 0.25  # at most one sample of 4
 
 
 def test_samples_must_be_square(scene_at):
     with pytest.raises(ValueError, match="square"):
         compute_reference(scene_at("box_plane", 32), samples=8)
+
+
+def _cache_file(tmp_path):
+    (path,) = (tmp_path / "reference").glob("*.npz")
+    return path
+
+
+@pytest.mark.parametrize("damage", ["zero_length", "truncated", "wrong_shape", "no_arrays"])
+def test_a_damaged_cache_entry_is_traced_again(damage, scene_at, tmp_path, monkeypatch):
+    """A cache file that cannot be read or holds another shape is a miss: traced again and
+    replaced. Catches the old reader (seen failing): EOFError on a zero-length file on every
+    rerun, a (2, 2) reference returned for a 40x40 scene, TypeError on an .npy named .npz
+    (a truncated zip it already handled)."""
+    monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path))
+    scene = scene_at("box_plane", 40)
+    first = compute_reference(scene, samples=4)
+    path = _cache_file(tmp_path)
+    match damage:
+        case "zero_length":
+            path.write_bytes(b"")
+        case "truncated":
+            path.write_bytes(path.read_bytes()[:100])
+        case "wrong_shape":
+            np.savez(path.with_suffix(""), visibility=np.ones((2, 2), np.float32),
+                     covered=np.ones((2, 2), bool), direct=np.zeros(0, np.float32),
+                     seconds=1.0, variant="llvm_ad_rgb")
+        case "no_arrays":
+            np.save(path.with_suffix(""), np.zeros(3))
+            path.with_suffix(".npy").replace(path)
+    again = compute_reference(scene, samples=4)
+    assert not again.cached and again.visibility.shape == (40, 40)
+    assert np.array_equal(again.visibility, first.visibility)
+    assert compute_reference(scene, samples=4).cached  # the entry was replaced
+
+
+def test_a_full_cache_warns_and_still_returns_the_reference(scene_at, tmp_path, monkeypatch):
+    """Disk full while storing: one warning, the reference is returned, and no later call
+    tries to write again. Catches the old code, whose ENOSPC aborted the sweep (seen failing)."""
+    monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path))
+    monkeypatch.setattr(ref_mod, "_cache_write_failure", None)
+    attempts = []
+
+    def disk_full(path, **arrays):
+        attempts.append(path)
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(ref_mod, "save_arrays", disk_full)
+    with pytest.warns(RuntimeWarning, match="No space left on device"):
+        ref = compute_reference(scene_at("box_plane", 32), samples=4)
+    assert ref.visibility.shape == (32, 32) and not ref.cached
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert compute_reference(scene_at("box_plane", 36), samples=4).visibility.shape == (36, 36)
+    assert len(attempts) == 1
+
+
+def test_nan_geometry_is_an_untraceable_scene(scene_at):
+    """A NaN vertex (e.g. a lathe profile with NaN) gives UntraceableSceneError naming the
+    scene and the part. Catches a reference without the check (seen failing): the old code let
+    Mitsuba's bare RuntimeError "attempted to gather from an empty array" out; the new kernel
+    would silently return a reference with nothing covered."""
+    scene = scene_at("box_plane", 16)
+    part = scene.parts[1]
+    vertices = part.vertices.copy()
+    vertices[0, 2] = np.nan
+    broken = dataclasses.replace(scene, parts=[scene.parts[0],
+                                               dataclasses.replace(part, vertices=vertices)])
+    with pytest.raises(UntraceableSceneError, match=f"'box_plane'.*NaN or Inf in vertices of "
+                                                    f"{re.escape(part.name)}"):
+        compute_reference(broken, samples=4, use_cache=False)
+
+
+def test_a_mitsuba_failure_is_an_untraceable_scene(scene_at, monkeypatch):
+    """Whatever Mitsuba raises while loading or tracing becomes UntraceableSceneError with
+    Mitsuba's message on one line. Catches a compute_reference that lets Mitsuba's RuntimeError
+    through (seen failing with the try/except removed)."""
+    def unknown_plugin(scene, mi, samples, seed=0):
+        return {"type": "scene", "thing": {"type": "no_such_plugin"}}
+
+    monkeypatch.setattr(ref_mod, "mitsuba_scene_dict", unknown_plugin)
+    with pytest.raises(UntraceableSceneError, match="'box_plane' cannot be traced: .*no_such_plugin"
+                       ) as caught:
+        compute_reference(scene_at("box_plane", 16), samples=4, use_cache=False)
+    assert "\n" not in str(caught.value)

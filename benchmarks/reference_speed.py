@@ -1,0 +1,81 @@
+"""The reference's cost next to Mitsuba's own ``direct`` integrator, in one process.
+
+    .venv/bin/python benchmarks/reference_speed.py [--scene castle] [--sizes 512 1024]
+                                                   [--samples 16] [--rounds 5]
+
+Both sides start from the same BuiltScene and pay for building and loading the Mitsuba scene:
+``direct`` is ``mi.load_dict`` of the reference's scene dict plus ``mi.render`` (one shadow ray
+and a BSDF evaluation per sample) and the read-back of the image; the reference is
+``compute_reference(..., use_cache=False)``. Rounds alternate the two, after one warm-up each
+(the first call compiles the Dr.Jit kernels; later processes load them from Dr.Jit's cache).
+The ratio is reference / direct per round: median, min and max over the rounds, on the wall
+clock and on this process's CPU time (steadier when other processes share the machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+import numpy as np
+
+
+def timed(work) -> tuple[float, float]:
+    """(wall seconds, CPU seconds of this process) of ``work()``."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    work()
+    return time.perf_counter() - wall, time.process_time() - cpu
+
+
+def direct(scene, samples: int) -> None:
+    import mitsuba as mi
+
+    from harness.reference import mitsuba_scene_dict
+
+    mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples))
+    np.asarray(mi.render(mscene, spp=samples))
+
+
+def reference(scene, samples: int) -> None:
+    from harness.reference import compute_reference
+
+    compute_reference(scene, samples=samples, use_cache=False)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="castle")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
+    ap.add_argument("--samples", type=int, default=16)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args()
+
+    from harness.reference import _mitsuba, choose_variant
+    from harness.scene import load_scene
+
+    variant = choose_variant()
+    _mitsuba(variant)
+    base = load_scene(args.scene)
+    print(f"{variant}; {args.scene}, {args.samples} samples/pixel, {args.rounds} rounds; "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{'size':>10s}{'clock':>7s}{'direct s':>10s}{'ref s':>10s}{'ref/direct':>12s}"
+          f"{'min':>7s}{'max':>7s}")
+    for size in args.sizes:
+        scene = base.with_resolution(size, size)
+        for work in (direct, reference):
+            work(scene, args.samples)
+        rounds = [(timed(lambda: direct(scene, args.samples)),
+                   timed(lambda: reference(scene, args.samples))) for _ in range(args.rounds)]
+        for clock, label in enumerate(("wall", "cpu")):
+            d = [pair[0][clock] for pair in rounds]
+            r = [pair[1][clock] for pair in rounds]
+            ratios = [b / a for a, b in zip(d, r)]
+            print(f"{f'{size}x{size}':>10s}{label:>7s}{statistics.median(d):10.3f}"
+                  f"{statistics.median(r):10.3f}{statistics.median(ratios):12.2f}"
+                  f"{min(ratios):7.2f}{max(ratios):7.2f}")
+
+
+if __name__ == "__main__":
+    main()

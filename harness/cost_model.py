@@ -1,0 +1,185 @@
+"""A linear cost model over the work a run counted: time that carries to another renderer.
+
+    estimate_ms = per_pass_ms     * passes              (measured passes per frame)
+                + per_vertex_ms   * vertex_invocations  (pipeline statistics)
+                + per_fragment_ms * fragment_invocations
+                + per_fetch_ms    * fetches             (fetches_per_px * covered_px)
+                + per_byte_ms     * bytes               (mem_bytes: the maps, written each frame)
+
+All inputs are per frame and stored in each results row, so any estimate can be recomputed
+from results.csv. Two coefficient sets:
+
+``RTX_4090``: NVIDIA GeForce RTX 4090 at its published peak rates, so the estimate is the
+throughput bound (a lower bound: no latency, no pass overhead, every unit busy). Figures from
+NVIDIA, "NVIDIA Ada GPU Architecture" whitepaper (2023), appendix table "GeForce RTX 4090":
+176 ROPs and 512 texture units at a 2520 MHz boost clock give a peak pixel fill rate of
+443.5 Gpixel/s (per fragment) and a peak texel rate of 1290.2 Gtexel/s (per fetch); 384-bit
+GDDR6X at 21 Gbps gives 1008 GB/s (per byte). The whitepaper gives no vertex rate: per vertex
+assumes 64 FP32 operations (two 4x4 matrix-vector products, what our vertex shaders do) at the
+whitepaper's 82.6 TFLOPS (1.29e12 vertices/s). Pass overhead is not modelled (0).
+
+``LLVMPIPE``: fitted here by non-negative least squares (:func:`fit`) to llvmpipe's measured
+``time_ms``, so the model's fit is checkable: ``python -m harness.cost_model DIR`` prints R^2
+and the worst relative error of these coefficients over DIR's runs, and of a fit to DIR itself.
+Note that llvmpipe counts fragment invocations per 4x4 block (harness.gl.measure), so the
+per-fragment coefficients of the two sets apply to slightly different counts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+FEATURES = ("passes", "vertices", "fragments", "fetches", "bytes")
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    """Milliseconds per unit of each feature; ``name`` says which renderer, ``source`` how."""
+
+    name: str
+    source: str
+    per_pass_ms: float
+    per_vertex_ms: float
+    per_fragment_ms: float
+    per_fetch_ms: float
+    per_byte_ms: float
+
+    def vector(self) -> np.ndarray:
+        return np.array([self.per_pass_ms, self.per_vertex_ms, self.per_fragment_ms,
+                         self.per_fetch_ms, self.per_byte_ms])
+
+
+RTX_4090 = Coefficients(
+    name="NVIDIA GeForce RTX 4090 (peak rates)",
+    source="NVIDIA Ada GPU Architecture whitepaper: 443.5 Gpixel/s, 1290.2 Gtexel/s, 1008 GB/s, "
+           "82.6 TFLOPS at 64 FLOP per vertex",
+    per_pass_ms=0.0,
+    per_vertex_ms=1e3 / (82.6e12 / 64),
+    per_fragment_ms=1e3 / 443.5e9,
+    per_fetch_ms=1e3 / 1290.2e9,
+    per_byte_ms=1e3 / 1008e9,
+)
+
+# Fitted to experiments/default.yaml (15 frames; 231 runs ok) on a shared 2-core machine whose
+# other processes used 82-91% of the CPU throughout (cpu_contention): R^2 0.84, relative error
+# median 31%, worst 227% (a 256x256 silhouette run). On a quiet machine every time is smaller;
+# refit there with fit().
+LLVMPIPE = Coefficients(
+    name="llvmpipe (Mesa 22.3.6, LLVM 15.0.6, 256 bits), 2 busy cores",
+    source="fit() over experiments/default.yaml, 231 runs",
+    per_pass_ms=0.0,
+    per_vertex_ms=1.912e-4,
+    per_fragment_ms=1.854e-5,
+    per_fetch_ms=5.449e-5,
+    per_byte_ms=7.499e-6,
+)
+
+GPU = RTX_4090  # what results rows store as gpu_estimate_ms
+
+
+def _number(value) -> float | None:
+    if value is None or value == "":
+        return None
+    x = float(value)
+    return None if math.isnan(x) else x
+
+
+def features(row: dict) -> np.ndarray | None:
+    """The model's inputs (in ``FEATURES`` order) from a results row, typed or as CSV
+    strings; None where a count is missing (no pipeline statistics, a failed run)."""
+    passes = row.get("passes")
+    if isinstance(passes, str):
+        passes = json.loads(passes) if passes else None
+    values = [_number(row.get(k)) for k in ("vertex_invocations", "fragment_invocations",
+                                            "fetches_per_px", "covered_px", "mem_bytes")]
+    if passes is None or any(v is None for v in values):
+        return None
+    vertices, fragments, fetches_per_px, covered_px, mem_bytes = values
+    return np.array([len(passes), vertices, fragments, fetches_per_px * covered_px, mem_bytes])
+
+
+def estimate_ms(row: dict, coefficients: Coefficients = GPU) -> float | None:
+    """The model's time for one row's counted work; None where a count is missing."""
+    x = features(row)
+    return None if x is None else float(x @ coefficients.vector())
+
+
+def fit(rows: list[dict], name: str = "fitted") -> Coefficients:
+    """Non-negative least squares of ``time_ms`` on the features of ``rows`` (each column
+    scaled to its largest value first, so the fit does not depend on units)."""
+    x, t = _design(rows)
+    if len(t) < len(FEATURES):
+        raise ValueError(f"need at least {len(FEATURES)} runs with counters to fit, got {len(t)}")
+    from scipy.optimize import nnls
+
+    scale = np.where(x.max(axis=0) > 0, x.max(axis=0), 1.0)
+    c, _ = nnls(x / scale, t)
+    return Coefficients(name, f"nnls over {len(t)} runs", *(c / scale))
+
+
+def fit_quality(rows: list[dict], coefficients: Coefficients) -> dict:
+    """R^2 of the model's times against ``time_ms``, the worst and median relative errors and
+    the run with the worst error."""
+    x, t = _design(rows)
+    kept = [r for r in rows if _usable(r)]
+    predicted = x @ coefficients.vector()
+    residual = ((t - predicted) ** 2).sum()
+    total = ((t - t.mean()) ** 2).sum()
+    relative = np.abs(predicted - t) / t
+    worst = int(np.argmax(relative))
+    w = kept[worst]
+    return {"runs": len(t), "r2": float(1 - residual / total) if total > 0 else float("nan"),
+            "worst_relative_error": float(relative[worst]),
+            "median_relative_error": float(np.median(relative)),
+            "worst_run": f"{w['scene']} {w['width']}x{w['height']} {w['technique']} "
+                         f"{w['params']}: {float(w['time_ms']):.3g} ms measured, "
+                         f"{predicted[worst]:.3g} ms modelled"}
+
+
+def _usable(row: dict) -> bool:
+    return (row.get("status") == "ok" and features(row) is not None
+            and (_number(row.get("time_ms")) or 0) > 0)
+
+
+def _design(rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    kept = [r for r in rows if _usable(r)]
+    x = np.array([features(r) for r in kept]).reshape(len(kept), len(FEATURES))
+    return x, np.array([float(r["time_ms"]) for r in kept])
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .results import read_rows
+
+    p = argparse.ArgumentParser(prog="python -m harness.cost_model",
+                                description="fit of the llvmpipe cost model over a results folder")
+    p.add_argument("dir", help="a run directory (its results.csv)")
+    args = p.parse_args(argv)
+    rows = read_rows(args.dir)
+    usable = [r for r in rows if _usable(r)]
+    if len(usable) < len(FEATURES):
+        print(f"python -m harness.cost_model: {args.dir}: {len(usable)} ok runs with work "
+              f"counters, need at least {len(FEATURES)}", file=sys.stderr)
+        return 2
+    noisy = sum(r.get("noisy") == "1" for r in usable)
+    print(f"{args.dir}: {len(usable)} ok runs with work counters ({noisy} noisy)")
+    refit = fit(usable, name=f"fitted to {args.dir}")
+    for coefficients in (LLVMPIPE, refit):
+        quality = fit_quality(usable, coefficients)
+        print(f"\n{coefficients.name} ({coefficients.source}):")
+        for key, value in asdict(coefficients).items():
+            if key.startswith("per_"):
+                print(f"  {key:16s} {value:.4g}")
+        print(f"  R^2 {quality['r2']:.3f}, worst relative error "
+              f"{quality['worst_relative_error']:.0%} ({quality['worst_run']}), median "
+              f"{quality['median_relative_error']:.0%}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
