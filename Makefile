@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup test bench report microbench microbench-compare reproduce lint clean
+.PHONY: setup test bench report compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -74,3 +74,9 @@ lint: setup
 
 clean:
 	rm -rf $(VENV) $(STAMPS) .pytest_cache
+
+# What changed from one results folder to another (exit 1 when something got worse):
+# make compare A=results/before B=results/after [COMPARE_FLAGS="--factor 1.2 --html diff.html"]
+compare: setup
+	@test -n "$(A)" -a -n "$(B)" || { echo "usage: make compare A=DIR B=DIR"; exit 2; }
+	$(VENV)/bin/shadowbench compare $(A) $(B) $(COMPARE_FLAGS)

@@ -1,4 +1,4 @@
-"""shadowbench list | run | reference | report.
+"""shadowbench list | run | reference | report | compare.
 
 Exit codes: 0 all runs ok; 1 some runs failed (their rows say why); 2 bad input (one line on
 stderr naming file and key; nothing written).
@@ -25,7 +25,8 @@ def _csv_list(text: str) -> list[str]:
 
 
 def cmd_list(args) -> int:
-    """Every technique with each parameter's default and allowed values, then the scenes."""
+    """Every technique with each parameter's default and allowed values and its quality knobs
+    (the values its curve walks), then the scenes."""
     import types
     import typing
 
@@ -75,6 +76,8 @@ def cmd_list(args) -> int:
             limits = [text for text in map(limit, field.metadata) if text]
             range_text = ", ".join([allowed(field.annotation)] + limits)
             print(f"      {pname:14s} default {show(default):11s} {range_text}")
+        for knob, values in cls.quality_knobs.items():
+            print(f"      quality knob {knob}: {', '.join(map(show, values))}")
     path = Path(args.scene_file)
     if path.is_file():
         print(f"scenes ({path}):")
@@ -82,6 +85,8 @@ def cmd_list(args) -> int:
             print(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
                   f"{scene.light.type} light, {len(scene.objects)} objects, effects "
                   f"{'+'.join(scene.effects)}")
+            if scene.description:
+                print(f"      {scene.description}")
     else:
         print(f"scenes: no scene file at {path}")
     return 0
@@ -128,6 +133,12 @@ def cmd_run(args) -> int:
         if r["status"] == "error":
             print(f"  failed: {r['scene']} {r['technique']} {r['params']}: {r['error']}",
                   file=sys.stderr)
+    if args.report:
+        from .report import build_report
+
+        print(f"report: {build_report(args.out).resolve()}", file=sys.stderr)
+    else:
+        print(f"the report: shadowbench report {args.out}", file=sys.stderr)
     return code
 
 
@@ -162,12 +173,19 @@ def cmd_reference(args) -> int:
 def cmd_report(args) -> int:
     from .report import build_report
 
-    try:
-        index = build_report(args.dir)
-    except FileNotFoundError as e:  # no results.csv in DIR: the user named the wrong folder
-        raise ConfigError(str(e)) from None
-    print(index.resolve())
+    print(build_report(args.dir).resolve())
     return 0
+
+
+def cmd_compare(args) -> int:
+    from .report import compare
+
+    result = compare.compare(args.before, args.after, factor=args.factor,
+                             tolerance=args.tolerance)
+    print(compare.text(result, only_changed=args.only_changed))
+    if args.html:
+        print(f"page: {compare.write_html(result, args.html).resolve()}", file=sys.stderr)
+    return 1 if result.worse else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -210,6 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--report", action="store_true", help="build DIR/index.html at the end")
     q.set_defaults(func=cmd_run)
 
     q = sub.add_parser("reference", help="compute (or fetch from cache) a scene's reference")
@@ -224,6 +243,19 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("report", help="build DIR/index.html from stored results")
     q.add_argument("dir")
     q.set_defaults(func=cmd_report)
+
+    q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER; "
+                                       "exit 1 when something got worse")
+    q.add_argument("before")
+    q.add_argument("after")
+    q.add_argument("--factor", type=float, default=1.1,
+                   help="time is worse beyond this ratio (and beyond its interval; default 1.1)")
+    q.add_argument("--tolerance", type=float, default=0.05,
+                   help="an error metric is worse when it grew by more than this fraction "
+                        "(default 0.05)")
+    q.add_argument("--only-changed", action="store_true", help="list only runs that changed")
+    q.add_argument("--html", metavar="FILE", help="also write the comparison as a page")
+    q.set_defaults(func=cmd_compare)
     return p
 
 

@@ -212,6 +212,7 @@ SceneObject = Annotated[
 
 
 class Scene(Strict):
+    description: str | None = None  # one sentence: what the scene is for (shown, never hashed)
     resolution: tuple[int, int] = (512, 512)
     camera: Camera
     light: Light
@@ -361,14 +362,27 @@ Scalar = Union[bool, int, float, str]
 
 class Grid(Strict):
     """One parameter grid: every combination of ``product`` times each row of ``zip``,
-    with ``set`` fixed."""
+    with ``set`` fixed; or, with ``curve``, the technique's quality curve from ``set`` (true:
+    every declared knob and value; a mapping: those knobs, with these values), expanded by the
+    planner, which knows the techniques' declarations."""
 
     product: dict[str, list[Scalar]] = {}
     zip: dict[str, list[Scalar]] = {}
     set: dict[str, Scalar] = {}
+    curve: Union[Literal[True], dict[str, list[Scalar]], None] = None
 
     @model_validator(mode="after")
     def _nonempty(self):
+        if self.curve is not None and (self.product or self.zip):
+            raise ValueError("curve: goes with set only, not with product or zip (a curve walks "
+                             "one knob at a time)")
+        if isinstance(self.curve, dict):
+            if not self.curve:
+                raise ValueError("curve: is empty; name a quality knob with its values, or "
+                                 "write true for every declared one")
+            for key, values in self.curve.items():
+                if not values:
+                    raise ValueError(f"curve.{key} is an empty list")
         kinds = {"product": self.product, "zip": self.zip, "set": self.set}
         for name in set().union(*kinds.values()):
             where = [k for k, values in kinds.items() if name in values]
@@ -403,8 +417,9 @@ class ReferenceSettings(Strict):
 class Experiment(Strict):
     scene_file: str | None = None  # relative to the experiment file; default: --scene-file
     scenes: Union[Literal["all"], list[str]] = "all"
-    # technique name -> grid(s); or "all": every registered technique at its defaults
-    techniques: Union[Literal["all"], dict[str, Union[Grid, list[Grid]]]]
+    # technique name -> grid(s); or "all": every registered technique at its defaults; or
+    # "curves": every registered technique along its declared quality curve
+    techniques: Union[Literal["all", "curves"], dict[str, Union[Grid, list[Grid]]]]
     resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
     frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
     warmup: int = Field(2, ge=0, le=1000)
@@ -422,7 +437,7 @@ class Experiment(Strict):
     @field_validator("techniques")
     @classmethod
     def _some(cls, v):
-        if v == "all":
+        if v in ("all", "curves"):
             return v
         if not v:
             raise ValueError("must name at least one technique")

@@ -1,7 +1,8 @@
 """Technique discovery through the ``shadowbench.techniques`` entry-point group.
 
 Built-in techniques register exactly as a third-party package would: an entry point
-``name = "package.module:Class"`` in that group. Two entry points with one name are an error.
+``name = "package.module:Class"`` in that group. Two entry points with one name are an error, and
+so is a bad quality-knob declaration: each is bad input (exit 2), naming the technique and key.
 """
 
 from __future__ import annotations
@@ -9,13 +10,14 @@ from __future__ import annotations
 from functools import lru_cache
 from importlib.metadata import entry_points
 
-from .technique import Technique
+from .config import ConfigError
+from .technique import Technique, check_quality_knobs
 
 GROUP = "shadowbench.techniques"
 
 
-class RegistryError(RuntimeError):
-    pass
+class RegistryError(ConfigError):
+    """A technique that cannot be registered as declared."""
 
 
 @lru_cache(maxsize=1)
@@ -34,6 +36,10 @@ def techniques() -> dict[str, type[Technique]]:
             raise RegistryError(
                 f"entry point {ep.name!r} loads {ep.value}, whose name is {cls.name!r}"
             )
+        try:
+            check_quality_knobs(cls)
+        except ValueError as e:
+            raise RegistryError(f"technique {ep.name!r} ({ep.value}): quality_knobs.{e}") from None
         found[ep.name], origin[ep.name] = cls, ep.value
     return dict(sorted(found.items()))
 

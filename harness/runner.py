@@ -29,7 +29,7 @@ from . import config as cfg
 from . import cost_model, metrics, registry, results
 from .gl import measure as pass_measure
 from .gl.measure import COUNTERS, default_timer
-from .scene import BuiltScene, build_scene
+from .scene import BuiltScene, build_scene, load_scene
 from .timing import CONFIDENCE, NOISY_CONTENTION, cpu_sample, median_interval, others_time
 
 
@@ -139,7 +139,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
 
     grids: dict[str, list[cfg.Grid]] = {}
     chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
-              else exp.techniques)
+              else {name: cfg.Grid(curve=True) for name in registered}
+              if exp.techniques == "curves" else exp.techniques)
     for name, g in chosen.items():
         if name not in registered:
             raise cfg.key_error(exp_path, node, ("techniques", name),
@@ -167,8 +168,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             for tech, tech_grids in grids.items():
                 version = registered[tech].code_version()
                 for gi, grid in enumerate(tech_grids):
-                    for combo in grid.combinations():
-                        loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    grid_loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
+                                                  node):
                         line = cfg._line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
@@ -185,6 +187,27 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
     return Plan(runs, built, exp_hash, str(exp_path))
+
+
+def grid_points(cls, grid: cfg.Grid, loc: tuple, path: Path, node) -> list[tuple[dict, tuple]]:
+    """A grid's parameter combinations, each with the key path that asks for it. A curve grid
+    gives the technique's quality curve from ``grid.set`` (:func:`quality_settings`), each point
+    named by its knob (``techniques.pcf.curve.k``); a technique that declares no knob runs at
+    ``set`` alone."""
+    from .technique import quality_settings
+
+    if grid.curve is None:
+        return [(combo, loc) for combo in grid.combinations()]
+    declared = cls.quality_knobs
+    knobs = declared if grid.curve is True else grid.curve
+    for knob in knobs:
+        if knob not in declared:
+            raise cfg.key_error(path, node, loc + ("curve", knob),
+                                f"{cls.name} has no quality knob {knob!r}; its knobs: "
+                                f"{', '.join(declared) or 'none'}")
+    if not knobs:
+        return [(dict(grid.set), loc + ("curve",))]
+    return [(params, loc + ("curve", knob)) for knob, params in quality_settings(knobs, grid.set)]
 
 
 def _git_commit() -> str:
@@ -282,6 +305,9 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment": plan.experiment_path,
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
+        "scenes": {name: {"description": scene.config.description,
+                          "effects": list(scene.config.effects)}
+                   for name, scene in plan.scenes.items()},
         "started": invocations[0]["started"],
         "finished": (previous.get("finished") if same and previous.get("finished")
                      else session["finished"] if complete else None),
@@ -504,6 +530,7 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
         ssim=metrics.ssim(v_clean, ref_v, mask=mask),
         psnr=metrics.psnr(v_clean, ref_v, mask=mask),
     )
+    images = {}
     if reference.direct is not None:
         a = frame.arrays
         ambient = frame.scene.config.ambient
@@ -511,9 +538,13 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
                                ambient=ambient)
         shaded_ref = reference.direct + (ambient * a.albedo)[..., None]
         row["flip"] = metrics.flip(shaded, shaded_ref)
+        # grey images (one channel) for the report's viewer; float16 is plenty to look at
+        images["shaded"] = shaded[..., 0].astype(np.float16)
+        images["shaded_reference"] = shaded_ref.mean(-1).astype(np.float16)
     row.update(output.extra)
     row["status"] = "ok"
     arrays = {"visibility": v.astype(np.float32), "covered": frame.arrays.covered,
+              "compared": mask, **images,
               **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
     return row, arrays
 
@@ -689,17 +720,22 @@ class Evaluation:
     mask: np.ndarray  # the pixels every metric compares (Frame.compared_pixels)
 
 
-def evaluate(scene: BuiltScene, technique: str, params: dict | None = None, *,
+def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None, *,
+             scene_file: str | Path = "scenes.yaml", resolution: tuple[int, int] | None = None,
              frames: int = 1, warmup: int = 0, samples: int = 16) -> Evaluation:
     """Run one technique on one scene in this process and score it (for tests, notebooks).
 
-    ``scene`` carries its resolution (``BuiltScene.with_resolution``); the reference comes from
-    the on-disk cache when present.
+    ``scene`` is a built scene or the name of one in ``scene_file``; ``resolution`` (width,
+    height) replaces the scene's own. The reference comes from the on-disk cache when present.
     """
     from .gl.context import get_context
     from .reference import compute_reference
     from .technique import Frame
 
+    if isinstance(scene, str):
+        scene = load_scene(scene, scene_file)
+    if resolution is not None:
+        scene = scene.with_resolution(*resolution)
     context = get_context()
     cls = registry.get(technique)
     checked = validate_params(technique, params or {}, "evaluate()")

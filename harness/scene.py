@@ -181,8 +181,11 @@ def _light(light) -> Light:
 
 
 def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
-    """Hash of the scene description, including the bytes of any mesh files it loads."""
-    h = hashlib.sha256(json.dumps(scene.model_dump(mode="json"), sort_keys=True).encode())
+    """Hash of the scene's geometry, light and camera, including the bytes of any mesh files it
+    loads; its ``description`` is prose and stays out, so rewording it keeps references and run
+    ids."""
+    geometry = scene.model_dump(mode="json", exclude={"description"})
+    h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):
             h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())

@@ -62,6 +62,10 @@ class Technique:
     summary: ClassVar[str]
     paper: ClassVar[str]
     Params: ClassVar[type[TechniqueParams]]
+    # The quality knob(s) and the values worth trying, in the order a curve joins them:
+    # ``{parameter: (value, ...)}``. A curve walks one knob at a time from the defaults (see
+    # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
+    quality_knobs: ClassVar[dict[str, tuple]] = {}
 
     def __init__(self, params: TechniqueParams):
         self.params = params
@@ -92,6 +96,42 @@ class Technique:
             return here / name if (here / name).is_file() else HARNESS_GLSL / name
 
         return Program(find(vertex), find(fragment), defines or None)
+
+
+def check_quality_knobs(cls: type[Technique]) -> None:
+    """Check a technique's ``quality_knobs`` like its Params: each knob a parameter, a non-empty
+    list of distinct values, each value valid with every other parameter at its default (that
+    is the setting that runs). Raises ValueError ``"<knob>: <what is wrong>"``."""
+    from pydantic import ValidationError
+
+    if not isinstance(cls.quality_knobs, dict):
+        raise ValueError(f"must be a mapping {{parameter: (value, ...)}}, got "
+                         f"{type(cls.quality_knobs).__name__}")
+    parameters = list(cls.Params.model_fields)
+    for knob, values in cls.quality_knobs.items():
+        if knob not in parameters:
+            raise ValueError(f"{knob}: not a parameter of {cls.__name__}.Params; parameters: "
+                             f"{', '.join(parameters)}")
+        if not isinstance(values, (list, tuple)) or not values:
+            raise ValueError(f"{knob}: needs a non-empty list of values, got {values!r}")
+        for value in values:
+            try:
+                cls.Params(**{knob: value})
+            except ValidationError as e:
+                reason = e.errors()[0]["msg"].removeprefix("Value error, ")
+                raise ValueError(f"{knob}: value {value!r} is not valid: {reason}") from None
+        repeated = sorted({repr(v) for v in values if values.count(v) > 1})
+        if repeated:
+            raise ValueError(f"{knob}: {', '.join(repeated)} listed more than once")
+
+
+def quality_settings(knobs: dict[str, list], base: dict | None = None) -> list[tuple[str, dict]]:
+    """The settings of a curve, one knob at a time: ``(knob, {**base, knob: value})`` for each
+    knob and value in order. Walking one knob from a shared base (the defaults unless ``base``
+    says otherwise) keeps every point one readable change from it, so each curve has one order
+    (its knob's), and costs the sum of the value lists' lengths in runs, not their product."""
+    return [(knob, {**(base or {}), knob: value})
+            for knob, values in knobs.items() for value in values]
 
 
 class Frame:

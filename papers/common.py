@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import metrics, report, results
+from harness import analysis, metrics, results
 
 # V strictly between these is penumbra: a filtered, soft edge pixel
 PENUMBRA = (0.02, 0.98)
@@ -63,15 +63,10 @@ class Runs:
     """The current successful rows of one experiment's run directory."""
 
     def __init__(self, root: Path, name: str):
-        from harness import registry
-
         self.root, self.name = Path(root), name
-        rows = report.current_rows(results.load(self.root / name))
-        # only runs of the techniques' code as it is now: a directory reused across versions
+        # only ok runs of the techniques' code as it is now: a directory reused across versions
         # keeps older rows, which must not stand in for (or beside) the current ones
-        version = {t: c.code_version() for t, c in registry.techniques().items()}
-        self.rows = rows[(rows["status"] == "ok")
-                         & (rows["code_version"] == rows["technique"].map(version))]
+        self.rows = analysis.current(results.load(self.root / name))
 
     def all(self, technique: str, scene: str | None = None, **params):
         rows = self.rows[self.rows["technique"] == technique]

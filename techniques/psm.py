@@ -26,6 +26,8 @@ class PerspectiveShadowMap(WarpedShadowMap):
     name = "psm"
     summary = "perspective shadow map: the map made in the camera's post-perspective space"
     paper = "Stamminger, Drettakis 2002, Perspective shadow maps"
+    # quality knob: the map size (the warp is fixed by the view)
+    quality_knobs = {"res": (256, 512, 1024, 2048, 4096)}
 
     def warp(self, setup: ViewSetup, res: int):
         warp = post_perspective_warp(setup, res)

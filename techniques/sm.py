@@ -28,6 +28,8 @@ class ShadowMap(Technique):
     name = "sm"
     summary = "shadow map: one depth comparison per pixel"
     paper = "Williams 1978, Casting curved shadows on curved surfaces"
+    # quality knob: the map size, the one way Williams' map buys accuracy with time
+    quality_knobs = {"res": (256, 512, 1024, 2048, 4096)}
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

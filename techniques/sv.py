@@ -101,6 +101,10 @@ class ShadowVolumes(Technique):
                "z-fail; half- or quarter-res mask")
     paper = ("Crow 1977, Shadow algorithms for computer graphics; Roettger, Irion, Ertl 2002, "
              "Shadow volumes revisited")
+    # quality knobs: buffer and method trade cost for robustness, mask_res accuracy for time
+    # (mask_res quarter and method nearclip join these when they exist)
+    quality_knobs = {"buffer": ("stencil", "alpha", "screen"), "method": ("zpass", "zfail"),
+                     "mask_res": ("half", "full")}
 
     class Params(TechniqueParams):
         buffer: Literal["stencil", "alpha", "screen"] = "stencil"

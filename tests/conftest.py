@@ -68,3 +68,46 @@ def small_scene_file(tmp_path, shipped_scenes):
         return path
 
     return write
+
+
+@pytest.fixture
+def make_results():
+    """``make_results(folder, runs, scene="s", size=32)``: a results folder written by hand (no
+    GL): a reference with a square shadow, and per run a row and arrays. Each run is a dict of
+    row values over sm at its defaults (``shift``: V is the reference moved right by that many
+    pixels, so its error sits on the shadow's vertical edges)."""
+    import json
+
+    import numpy as np
+
+    from harness import metrics, registry, results
+
+    def write(folder, runs, scene="s", size=32):
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        ref = np.ones((size, size), np.float32)
+        ref[size // 4:3 * size // 4, size // 4:3 * size // 4] = 0.0
+        covered = np.ones((size, size), bool)
+        reference = f"arrays/ref-{size}.npz"
+        results.save_arrays(folder / reference, visibility=ref, covered=covered)
+        sm = registry.get("sm")
+        rows = []
+        for i, run in enumerate(runs):
+            run = dict(run)
+            v = np.roll(ref, run.pop("shift", 0), axis=1)
+            params = {**sm.Params().model_dump(mode="json"), **run.pop("params", {})}
+            array = f"arrays/run-{i}.npz"
+            results.save_arrays(folder / array, visibility=v, covered=covered)
+            rows.append({
+                "run_id": f"{i:016d}", "schema": results.SCHEMA_VERSION, "scene": scene,
+                "technique": "sm", "params": json.dumps(params, sort_keys=True),
+                "width": size, "height": size, "time_ms": 1.0, "scene_ms": 0.5,
+                "mae": metrics.mae(v, ref), "wrong_pct": metrics.wrong_pct(v, ref),
+                "edge_mae": metrics.edge_mae(v, ref), "status": "ok", "error": "",
+                "code_version": sm.code_version(), "array": array,
+                "reference_array": reference, "v_min": 0.0, "v_max": 1.0, "nonfinite": 0,
+                **run})
+        results.write_rows(folder, rows)
+        return folder
+
+    return write

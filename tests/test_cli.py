@@ -130,6 +130,15 @@ def test_list_shows_readable_defaults_and_ranges(capsys):
     assert "square" in param_line("pcf", "k")
     assert ">= 16" in param_line("pcf", "res") and "<= 8192" in param_line("pcf", "res")
     assert "1 | 2 | 3 | 4" in param_line("mdsm", "n")
+    # each technique's quality knobs, with the values its curve walks
+    for name, cls in registry.techniques().items():
+        start = next(i for i, line in enumerate(lines) if line.split()[:1] == [name])
+        end = next((i for i, line in enumerate(lines[start + 1:], start + 1)
+                    if not line.startswith("      ")), len(lines))
+        shown = {line.split(":")[0].split()[-1]: line.split(": ")[1] for line in lines[start:end]
+                 if line.split()[:2] == ["quality", "knob"]}
+        assert shown == {k: ", ".join(str(v) for v in values)
+                         for k, values in cls.quality_knobs.items()}, name
     text = "\n".join(lines)
     assert "function" not in text and "object at 0x" not in text
     assert "AfterValidator" not in text and "Literal" not in text

@@ -52,6 +52,19 @@ BAD = [
     ("techniques: all\nframes: 0\n", "frames: Input should be greater than or equal to 1"),
     ("", "exp.yaml: an experiment is a mapping with at least a 'techniques' key"),
     ("techniques: [sm\n", "exp.yaml:2: not valid YAML"),
+    # quality curves: an empty curve, a knob the technique does not declare, a bad value
+    ("techniques: {sm: {curve: {res: []}}}\n", "techniques.sm: curve.res is an empty list"),
+    ("techniques: {sm: {curve: {}}}\n", "techniques.sm.curve: is empty; name a quality knob"),
+    ("techniques:\n  sm: {curve: {bias: [0.1]}}\n",
+     "exp.yaml:2: techniques.sm.curve.bias: sm has no quality knob 'bias'; its knobs: res"),
+    ("techniques:\n  sm: {curve: {res: [256, 100000]}}\n",
+     "exp.yaml:2: techniques.sm.curve.res: sm.res: Input should be less than or equal to 8192"),
+    ("techniques: {sv: {curve: {method: [zpass, nearly]}}}\n",
+     "techniques.sv.curve.method: sv.method: Input should be 'zpass' or 'zfail'"),
+    ("techniques: {mdsm: {curve: {n: [1, 4]}}}\n",
+     "techniques.mdsm.curve.n: mdsm.(parameters): select=minmax allows n in [1, 2, 3]"),
+    ("techniques: {sm: {curve: true, product: {res: [256]}}}\n",
+     "techniques.sm.curve: goes with set only, not with product or zip"),
 ]
 
 
@@ -74,6 +87,73 @@ def test_scenes_outside_the_experiment_are_an_error(tmp_path, capsys):
                         "--out", str(out)])
     assert code == 2 and "--scenes: castle not in" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("technique", "knobs", "message"), [
+    ("sm", {"nosuch": (1,)}, "quality_knobs.nosuch: not a parameter of ShadowMap.Params"),
+    ("sm", {"res": ()}, "quality_knobs.res: needs a non-empty list of values"),
+    ("sm", {"res": (256, 8)}, "quality_knobs.res: value 8 is not valid: Input should be greater"),
+    ("sm", {"res": (256, 256)}, "quality_knobs.res: 256 listed more than once"),
+    ("mdsm", {"n": (1, 4)}, "quality_knobs.n: value 4 is not valid: select=minmax allows n in"),
+], ids=["not a parameter", "empty", "invalid value", "repeated", "invalid at the defaults"])
+def test_bad_quality_knob_declaration_exits_2_naming_technique_and_key(
+        tmp_path, capsys, monkeypatch, technique, knobs, message):
+    """A technique declaring a knob that is not a parameter, an empty curve or a value its
+    Params refuse (with the other parameters at their defaults, as the curve runs it) is bad
+    input when the registry loads it. Catches: a declaration checked only when a curve runs
+    (this run asks for no curve), a knob checked against nothing, a traceback instead of exit 2."""
+    from harness import registry
+
+    cls = registry.get(technique)
+    monkeypatch.setattr(cls, "quality_knobs", knobs)
+    registry.techniques.cache_clear()
+    out = tmp_path / "out"
+    try:
+        code = shadowbench(["run", "--scene-file", str(SCENE_FILE), "--scenes", "box_plane",
+                            "--techniques", "sm", "--out", str(out)])
+    finally:
+        monkeypatch.undo()
+        registry.techniques.cache_clear()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"shadowbench: technique {technique!r} (techniques.{technique}:"), err
+    assert message in err, err
+    assert not out.exists()
+
+
+def test_curves_walk_one_knob_at_a_time_from_the_defaults(tmp_path):
+    """``techniques: curves`` runs every registered technique at each declared value of each
+    knob with every other parameter at its default (the defaults once, however many curves
+    cross there); ``curve: {knob: [...]}`` picks knobs and values, ``set`` moves the base.
+    Catches: a product of the knobs (pcf would run 25 settings), a knob left out, the base
+    ignored, the shared point run twice."""
+    from harness import registry
+
+    def plan(text):
+        return runner.plan_runs(experiment_path=str(_write(tmp_path, text)),
+                                scene_file=str(SCENE_FILE), scenes=None, techniques=None,
+                                overrides={})
+
+    runs = plan("scenes: [box_plane]\ntechniques: curves\n").runs
+    assert {r.technique for r in runs} == set(registry.techniques())
+    assert len({r.run_id for r in runs}) == len(runs)
+    for name, cls in registry.techniques().items():
+        defaults = cls.Params().model_dump(mode="json")
+        settings = [r.params for r in runs if r.technique == name]
+        # mdsm leaves ``extra`` out where it does not apply: compare the names both have
+        changed = [{k for k in defaults if k in p and p[k] != defaults[k]} for p in settings]
+        assert all(len(c) <= 1 and c <= set(cls.quality_knobs) for c in changed), (name, changed)
+        for knob, values in cls.quality_knobs.items():
+            assert {p[knob] for p in settings} == set(values), (name, knob)
+    pcf = registry.get("pcf").quality_knobs
+    assert len([r for r in runs if r.technique == "pcf"]) == len(pcf["res"]) + len(pcf["k"]) - 1
+
+    chosen = plan("scenes: [box_plane]\ntechniques:\n"
+                  "  mdsm: {curve: {k: [1, 4], n: [1]}, set: {res: 512}}\n"
+                  "  sm: [{curve: {res: [256]}}, {}]\n").runs
+    assert sorted((r.params["res"], r.params["n"], r.params["k"]) for r in chosen
+                  if r.technique == "mdsm") == [(512, 1, 9), (512, 2, 1), (512, 2, 4)]
+    assert sorted(r.params["res"] for r in chosen if r.technique == "sm") == [256, 1024]
 
 
 def test_grid_expands_product_times_zip_with_set_fixed():

@@ -3,6 +3,8 @@ papers.json schema, and the Papers page with its links."""
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import math
 import re
@@ -234,13 +236,15 @@ def test_papers_json_schema_and_page(mdsm_run):
     assert 'href="mdsm/index.html"' in page
     for i, c in enumerate(found):
         assert f'id="claim-{i}"' in page
-    sources = re.findall(r'<img src="([^"]+)"', page)
-    assert sources and all((mdsm_run / s).is_file() for s in sources)
+    sources = re.findall(r'<img[^>]*\bsrc="([^"]+)"', page)
+    assert sources and all(s.startswith("data:image/") for s in sources)  # the page is one file
     # the Figure 6 images: the reference and the five runs (two pairs and their controls, one
     # shared) side by side, each with a crop
     fig6 = next(i for i, c in enumerate(found) if c.where == "Figure 6")
-    assert sum(s.startswith(f"images/papers/claim-{fig6}/") for s in sources) == 12
-    first = np.asarray(Image.open(mdsm_run / f"images/papers/claim-{fig6}/1.png"))
+    section = page.split(f'id="claim-{fig6}"')[1].split("<section")[0]
+    images = re.findall(r'<img[^>]*\bsrc="data:image/\w+;base64,([^"]+)"', section)
+    assert len(images) == 12
+    first = np.asarray(Image.open(io.BytesIO(base64.b64decode(images[1]))))
     assert first.shape[:2] == (256, 256)
 
 

@@ -131,6 +131,8 @@ def test_technique_declaration(name):
     for param in cls.Params.model_fields:
         assert f"``{param}``" in doc, f"{name}: parameter {param} missing from the docstring table"
     cls.Params()  # defaults are valid
+    # a built-in has a quality curve (checked against Params when registered)
+    assert cls.quality_knobs, f"{name}: declares no quality knob"
     with pytest.raises(ValidationError, match="no_such_parameter"):
         cls.Params(no_such_parameter=1)
     version = cls.code_version()

@@ -1,4 +1,5 @@
-"""The dashboard: its pure helpers on hand-made data, then a page built from a real small run."""
+"""The dashboard: image helpers on hand-made arrays, pages from hand-made results (hostile names,
+arrays outside the folder, damaged arrays), then a page built from a real small run."""
 
 from __future__ import annotations
 
@@ -10,13 +11,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import registry, report, results
+from harness import results
 from harness.cli import main as shadowbench
+from harness.report import build_report, images, stability
 
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = [[64, 64], [96, 96]]
 # Two scenes: one shadow-only (directional light) and one shaded (spot light, so flip exists).
 SCENES = ["box_plane", "sphere_plane"]
+HOSTILE = """x" onerror="document.title='PWNED'\""""
 
 
 def make_run_dir(out: Path) -> Path:
@@ -43,6 +46,146 @@ def make_run_dir(out: Path) -> Path:
     return out
 
 
+def scene_data(page: str) -> list[dict]:
+    """The JSON each scene section carries (runs with their images, plot, references)."""
+    return [json.loads(m) for m in re.findall(
+        r'<script type="application/json" class="scene-data">(.*?)</script>', page, re.S)]
+
+
+# --- images on hand-made arrays -----------------------------------------------------------------
+
+def test_edge_crop_lies_on_the_shadow_edge():
+    ref = np.ones((128, 128), np.float32)
+    ref[:, :40] = 0.0  # a vertical shadow boundary between columns 39 and 40
+    r, c, size = images.edge_crop(ref, np.ones_like(ref, bool))
+    assert size == 24  # an eighth of 128 is 16, below the 24 px minimum
+    assert 0 <= r and r + size <= 128 and c < 40 < c + size
+    assert images.edge_crop(np.ones((64, 64)), np.ones((64, 64), bool)) is None
+
+
+def test_worst_edge_crop_is_where_the_run_errs():
+    """A square shadow whose left edge the run gets right and whose right edge (column 96) it
+    gets wrong in rows 100..120: the window holds that error. Catches a crop chosen by edge
+    pixels alone (it would sit anywhere along the square's outline)."""
+    ref = np.ones((128, 128))
+    ref[20:120, 30:96] = 0.0
+    v = ref.copy()
+    v[100:120, 96:99] = 0.0  # shadow spills three columns past the right edge, low down
+    compared = np.ones_like(ref, bool)
+    r, c, size = images.worst_edge_crop(images.signed_error(v, ref, compared), ref, compared)
+    assert r <= 100 and 120 <= r + size + 4 and c <= 96 < c + size
+
+
+def test_shrunk_error_keeps_a_one_pixel_error():
+    """One wrong pixel in 1024x1024 stays one full-strength pixel at 256. Catches averaging the
+    error down (it would fade to 1/16)."""
+    d = np.zeros((1024, 1024))
+    d[517, 301] = -1.0
+    d[:4, :4] = np.nan  # a block with nothing compared stays "none"
+    shown = images.shrink_error(d)
+    assert shown.shape == (256, 256) and shown[129, 75] == -1.0
+    assert np.isnan(shown[0, 0]) and np.nansum(np.abs(shown)) == 1.0
+
+
+def test_scale_maps_values_onto_the_palette_and_nan_onto_none():
+    """0 -> the first colour, 1 and anything above -> the last value colour (254), NaN -> 255.
+    Catches values above the range taking the "none" colour."""
+    index = images.VISIBILITY.index(np.array([0.0, 0.5, 1.0, 2.0, np.nan]))
+    assert list(index) == [0, 127, 254, 254, 255]
+    assert list(images.ERROR.index(np.array([-1.0, 0.0, 1.0]))) == [0, 127, 254]
+    assert tuple(images.ERROR.palette[127]) == (255, 255, 255)  # no error is white
+    assert tuple(images.ERROR.palette[254]) == (255, 0, 0)  # lit where the reference is not
+
+
+def test_stability_marks_failures_nonfinite_and_v_out_of_range():
+    rows = pd.DataFrame({
+        "scene": ["s"] * 6, "technique": ["a", "a", "b", "c", "d", "e"],
+        "status": ["ok", "ok", "error", "ok", "ok", "skipped"],
+        "error": ["", "", "boom", "", "", "not applicable"],
+        "nonfinite": [0, 0, np.nan, 3, 0, np.nan], "v_min": [0, 0, np.nan, 0, -0.1, np.nan],
+        "v_max": [1, 1, np.nan, 1, 1, np.nan], "wrong_pct": [0.5, 2.5, np.nan, 1, 1, np.nan]})
+    cells = stability.stability_cells(rows)
+    assert not cells[("s", "a")]["fails"] and cells[("s", "a")]["worst_wrong_pct"] == 2.5
+    assert cells[("s", "b")]["fails"] and cells[("s", "b")]["first_error"] == "boom"
+    assert cells[("s", "c")]["fails"] and cells[("s", "c")]["nonfinite"] == 1
+    assert cells[("s", "d")]["fails"] and cells[("s", "d")]["out_of_range"] == 1
+    assert not cells[("s", "e")]["fails"] and cells[("s", "e")]["skipped"] == 1
+
+
+# --- pages from hand-made results ---------------------------------------------------------------
+
+def hostile_folder(folder: Path, make_results) -> Path:
+    """A scene named to break out of an attribute, a failed run whose error is markup, and a
+    parameter value that is a script."""
+    make_results(folder, [{"params": {"res": 512}},
+                          {"params": {"res": 1024}, "shift": 1},
+                          {"params": {"res": 2048}, "status": "error",
+                           "error": "<img src=x onerror=\"document.title='PWNED2'\">"},
+                          {"params": {"res": 4096, "bias": "</script><script>alert(1)</script>"}}],
+                 scene=HOSTILE)
+    return folder
+
+
+def test_hostile_names_reach_the_page_only_as_text(tmp_path, make_results):
+    """Catches any unescaped output: a template without autoescape, a ``|safe`` on data, JSON
+    in a script element that can close it, a name used raw as a file or an id."""
+    folder = hostile_folder(tmp_path / "run", make_results)
+    page = build_report(folder).read_text()
+    assert "onerror=\"document" not in page and "<img src=x" not in page
+    assert "</script><script>alert" not in page
+    assert len(re.findall(r"<script[ >]", page)) == 2 + 1  # charts.js, page.js, the scene's data
+    assert "x&#34; onerror=&#34;document.title=&#39;PWNED&#39;&#34;" in page  # shown, as text
+    written = [p for p in folder.rglob("*") if p.is_file()]
+    assert all(p.resolve().is_relative_to(folder.resolve()) for p in written)
+    assert not any("onerror" in p.name or '"' in p.name for p in written)
+
+
+def test_arrays_are_read_only_from_inside_the_folder(tmp_path, make_results):
+    """A row whose ``array`` leads outside the folder (to a real run's arrays) shows no images
+    and a note; the other runs show theirs. Catches following results.csv's paths anywhere."""
+    elsewhere = make_results(tmp_path / "elsewhere", [{}])
+    folder = make_results(tmp_path / "run", [{"params": {"res": 512}}, {"params": {"res": 1024}}])
+    rows = results.read_rows(folder)
+    rows[1]["array"] = "../elsewhere/arrays/run-0.npz"
+    results.write_rows(folder, rows)
+    assert (folder / rows[1]["array"]).is_file()
+    page = build_report(folder).read_text()
+    runs = {r["setting"]: r for r in scene_data(page)[0]["runs"]}
+    assert runs["res=512"]["images"]["v"].startswith("data:image/")
+    assert runs["res=1024"]["images"] is None
+    assert "&#39;../elsewhere/arrays/run-0.npz&#39; points outside" in page
+    del elsewhere
+
+
+def test_a_damaged_or_missing_array_shows_that_run_unavailable(tmp_path, make_results):
+    """A truncated .npz and a deleted one: those runs show why they have no images, the page
+    names them in its notes, the third run is shown. Catches a BadZipFile or FileNotFoundError
+    ending the report."""
+    folder = make_results(tmp_path / "run", [{"params": {"res": r}} for r in (512, 1024, 2048)])
+    damaged = folder / "arrays" / "run-1.npz"
+    damaged.write_bytes(damaged.read_bytes()[:40])
+    (folder / "arrays" / "run-2.npz").unlink()
+    page = build_report(folder).read_text()
+    runs = {r["setting"]: r for r in scene_data(page)[0]["runs"]}
+    assert runs["res=512"]["images"] is not None
+    assert runs["res=1024"]["images"] is None and runs["res=2048"]["images"] is None
+    assert "missing, damaged" in runs["res=1024"]["unavailable"]
+    assert "arrays/run-1.npz cannot be read (BadZipFile)" in page
+    assert "arrays/run-2.npz cannot be read (FileNotFoundError)" in page
+
+
+def test_report_on_a_folder_without_results_is_one_line(tmp_path, capsys):
+    """Catches a traceback (FileNotFoundError, KeyError on a foreign CSV) instead of exit 2."""
+    (tmp_path / "foreign").mkdir()
+    (tmp_path / "foreign" / "results.csv").write_text("a,b\n1,2\n")
+    for folder, why in ((tmp_path, "no results.csv"), (tmp_path / "foreign", "not shadowbench")):
+        assert shadowbench(["report", str(folder)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and why in err[0]
+
+
+# --- a page built from a real run ---------------------------------------------------------------
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory, gl_context):
     return make_run_dir(tmp_path_factory.mktemp("dashboard") / "run")
@@ -50,157 +193,127 @@ def run_dir(tmp_path_factory, gl_context):
 
 @pytest.fixture(scope="module")
 def built(run_dir):
-    index = report.build_report(run_dir)
+    index = build_report(run_dir)
     return index, index.read_text()
 
 
-# --- helpers on hand-made data ------------------------------------------------------------------
-
-def test_pareto_front_keeps_only_runs_nothing_beats():
-    times = [1.0, 2.0, 3.0, 4.0, 5.0, 2.0]
-    errors = [5.0, 3.0, 4.0, 1.0, 2.0, 3.5]
-    # (3, 4) is beaten by (2, 3); (5, 2) by (4, 1); (2, 3.5) by (2, 3)
-    assert report.pareto_front(times, errors) == [0, 1, 3]
-
-
-def test_edge_crop_lies_on_the_shadow_edge():
-    ref = np.ones((128, 128), np.float32)
-    ref[:, :40] = 0.0  # a vertical shadow boundary between columns 39 and 40
-    covered = np.ones_like(ref, bool)
-    r, c, size = report.edge_crop(ref, covered)
-    assert size == 24  # an eighth of 128 is 16, below the 24 px minimum
-    assert 0 <= r and r + size <= 128 and c < 40 < c + size
-    assert report.edge_crop(np.ones((64, 64)), np.ones((64, 64), bool)) is None
-
-
-def _rows(**columns) -> pd.DataFrame:
-    n = len(next(iter(columns.values())))
-    base = {"scene": ["s"] * n, "width": [64] * n, "height": [64] * n,
-            "params": [{"i": i} for i in range(n)], "status": ["ok"] * n,
-            "nonfinite": [0.0] * n, "v_min": [0.0] * n, "v_max": [1.0] * n,
-            "wrong_pct": [1.0] * n, "error": [""] * n}
-    return pd.DataFrame({**base, **columns})
-
-
-def test_stability_marks_failures_nonfinite_and_v_out_of_range():
-    rows = _rows(technique=["a", "a", "b", "c", "d", "e"],
-                 status=["ok", "ok", "error", "ok", "ok", "skipped"],
-                 error=["", "", "boom", "", "", "not applicable"],
-                 nonfinite=[0, 0, np.nan, 3, 0, np.nan], v_min=[0, 0, np.nan, 0, -0.1, np.nan],
-                 v_max=[1, 1, np.nan, 1, 1, np.nan], wrong_pct=[0.5, 2.5, np.nan, 1, 1, np.nan])
-    cells = report.stability_cells(rows)
-    assert not cells[("s", "a")]["fails"] and cells[("s", "a")]["worst_wrong_pct"] == 2.5
-    assert cells[("s", "b")]["fails"] and cells[("s", "b")]["first_error"] == "boom"
-    assert cells[("s", "c")]["fails"] and cells[("s", "c")]["nonfinite"] == 1
-    assert cells[("s", "d")]["fails"] and cells[("s", "d")]["out_of_range"] == 1
-    assert not cells[("s", "e")]["fails"] and cells[("s", "e")]["skipped"] == 1
-    page = report.stability_table(rows)
-    assert page.count('class="fail"') == 3 and page.count('class="pass"') == 1
-
-
-def test_cheapest_run_within_each_budget():
-    rows = _rows(technique=["a", "b", "c", "d"], time_ms=[1.0, 2.0, 4.0, 0.5],
-                 edge_mae=[0.3, 0.15, 0.01, np.nan], wrong_pct=[3.0, 1.0, 0.05, 0.0],
-                 status=["ok", "ok", "ok", "error"])
-    cheapest = report.cheapest_runs(rows)
-    pick = {(m, b): None if r is None else r["technique"] for (m, b, _), r in cheapest.items()}
-    # the failed run d is fastest and "meets" every wrong_pct budget, but it failed
-    assert pick[("edge_mae", 0.02)] == "c" and pick[("edge_mae", 0.2)] == "b"
-    assert pick[("edge_mae", 0.3)] == "a" and pick[("wrong_pct", 0.1)] == "c"
-    assert pick[("wrong_pct", 1.0)] == "b" and pick[("wrong_pct", 5.0)] == "a"
-    assert report.cheapest_runs(_rows(technique=["a"], time_ms=[1.0], edge_mae=[0.5],
-                                      wrong_pct=[50.0]))[("edge_mae", 0.3, (64, 64))] is None
-
-
-def test_a_rerun_supersedes_the_older_row_of_the_same_run():
-    rows = _rows(technique=["a", "a", "b"], params=[{"k": 1}, {"k": 1}, {"k": 1}],
-                 time_ms=[5.0, 3.0, 1.0])
-    current = report.current_rows(rows)
-    assert sorted(current["time_ms"]) == [1.0, 3.0]
-
-
-# --- a page built from a real run ---------------------------------------------------------------
-
-def test_page_embeds_plotly_once_and_loads_nothing_from_the_network(built):
+def test_page_is_one_file_that_loads_nothing_from_elsewhere(built):
+    """Catches images referenced as files (broken when index.html is copied alone) and any
+    library fetched from a network."""
     _, page = built
-    assert page.count("plotly.js v") == 1  # the library's licence header
-    head, _library, rest = re.split(r"<script[^>]*>/\*\*\s*\* plotly\.js v.*?</script>", page,
-                                   maxsplit=1, flags=re.DOTALL) + [""]
-    outside = head + rest
-    assert not re.search(r"""(src|href)=["']https?:""", outside)
-    assert "cdn.plot.ly" not in outside and "<script src" not in outside
+    assert not re.search(r"""(src|href)=["'](?!data:|#)""", page.replace(
+        'href="#', "").replace("href='#", ""))
+    assert "<script src" not in page and "plotly" not in page.lower()
+    for data in scene_data(page):
+        for run in data["runs"]:
+            if run["images"]:
+                assert run["images"]["v"].startswith("data:image/")
+    assert len(page) < 3_000_000
 
 
-def test_every_scene_has_its_plots_tables_and_images(built, run_dir):
-    index, page = built
-    df = report.current_rows(results.load(run_dir))
-    for scene in SCENES:
-        assert f'id="{scene}-cost-accuracy"' in page and f'id="{scene}-costs"' in page
-    sources = re.findall(r'<img src="([^"]+)"', page)
-    for src in sources:
-        assert (index.parent / src).is_file(), src
-    # the image grid: at the larger resolution, every technique with an ok run has V, error, crop
-    for scene in SCENES:
-        ok = df[(df["scene"] == scene) & (df["status"] == "ok") & (df["width"] == 96)]
-        assert f"images/{scene}/96x96/reference.png" in sources
-        for technique in ok["technique"].unique():
-            mine = [s for s in sources if f"images/{scene}/96x96/{technique}-" in s
-                    and "-map-" not in s]
-            assert len(mine) == 3, (scene, technique, mine)
-    assert "broken_example" in page and "shader failed to link" in page
-
-
-def test_image_grid_shows_each_technique_at_its_defaults(built, run_dir):
+def test_every_ok_run_has_its_images_and_shaded_scenes_their_shaded_images(built, run_dir):
+    """Not only the defaults: every ok run (the sm and pcf grids too) has V, error and an edge
+    crop; sphere_plane (effects: direct) has shaded images, box_plane none. Catches a viewer
+    limited to default runs and a shaded image that is never shown."""
     _, page = built
-    df = report.current_rows(results.load(run_dir))
-    sm = df[(df["technique"] == "sm") & (df["scene"] == "box_plane") & (df["width"] == 96)]
-    assert len(sm) == 2  # the grid's res 256 and 1024 (the default)
-    default = registry.get("sm").Params().model_dump(mode="json")
-    at_default = sm[sm["params"].map(lambda p: p == default)]
-    other = sm[sm["params"].map(lambda p: p != default)]
-    assert len(at_default) == 1 and len(other) == 1
-    assert Path(at_default["array"].iloc[0]).stem + ".png" in page
-    assert Path(other["array"].iloc[0]).stem + ".png" not in page
+    df = results.load(run_dir)
+    for data in scene_data(page):
+        ok = [r for r in data["runs"] if r["status"] == "ok"]
+        assert ok and all(r["images"] and r["images"]["err"] and r["images"]["crop"] for r in ok)
+        scene = "sphere_plane" if any(r["images"]["shaded"] for r in ok) else "box_plane"
+        shaded = scene == "sphere_plane"
+        assert all(bool(r["images"]["shaded"]) == shaded for r in ok)
+        assert all(bool(ref["shaded"]) == shaded for ref in data["references"].values())
+        assert len(ok) == ((df["scene"] == scene) & (df["status"] == "ok")).sum()
 
 
-def test_scatter_offers_flip_only_where_the_scene_is_shaded(run_dir):
-    df = report.current_rows(results.load(run_dir))
-    colours = report._colours(df["technique"].unique())
-    for scene, shaded in (("box_plane", False), ("sphere_plane", True)):
-        fig = report.cost_accuracy_figure(df[df["scene"] == scene], colours)
-        labels = [b.label for b in fig.layout.updatemenus[0].buttons]
-        assert labels[:3] == ["edge_mae", "mae", "wrong_pct"]
-        assert ("flip" in labels) == shaded
-        # one marker per ok run for the first metric, and a Pareto front per resolution
-        shown = [t for t in fig.data if t.visible]
-        markers = sum(len(t.x) for t in shown if t.mode == "markers")
-        ok = df[(df["scene"] == scene) & (df["status"] == "ok")]
-        assert markers == len(ok)
-        assert sorted(t.name for t in shown if t.mode == "lines") == [
-            "Pareto front 64x64", "Pareto front 96x96"]
-        hover = next(t for t in shown if t.mode == "markers").text[0]
-        assert "time" in hover and " = " in hover  # parameters are in the hover text
-
-
-def test_crop_of_the_image_grid_is_on_the_reference_edge_band(run_dir, built):
-    with np.load(run_dir / "arrays" / "box_plane" / "96x96" / "reference-4spp-seed0.npz") as z:
-        ref, covered = z["visibility"], z["covered"]
-    r, c, size = report.edge_crop(ref, covered)
-    band = report.metrics.edge_band(ref, mask=covered)
-    assert band[r:r + size, c:c + size].sum() > 0.1 * size * size
-
-
-def test_a_techniques_own_maps_are_stored_and_shown(built, run_dir):
-    """lispsm stores its texel-size map with its run; the grid shows it in colour."""
+def test_curves_join_each_techniques_runs_in_knob_order(built):
+    """sm's res grid and pcf's k grid at 96x96 are lines in knob order labelled with their
+    setting. Catches points left unjoined or joined in the order they were run."""
     _, page = built
-    df = report.current_rows(results.load(run_dir))
+    data = next(d for d in scene_data(page) if d["plot"]["sizes"] == ["64x64", "96x96"]
+                and "flip" not in d["plot"]["errors"])
+    view = data["plot"]["views"]["time_ms|edge_mae"]
+    labels = {(line["technique"], line["size"]): line["labels"] for line in view["lines"]
+              if len(line["runs"]) > 1}
+    assert labels[("sm", "96x96")] == ["res=256", "res=1024"]
+    assert labels[("pcf", "96x96")] == ["k=4", "k=16"]
+    assert view["front"] and all(isinstance(i, int) for i in view["front"])
+
+
+def test_descriptions_reach_the_list_and_the_page(built, capsys):
+    """Catches a description dropped on the way (config, manifest, page, ``shadowbench list``)."""
+    from harness import config
+
+    described = config.load_scenes(ROOT / "scenes.yaml")["box_plane"].description
+    assert described and described in built[1].replace("&#39;", "'")
+    assert shadowbench(["list", "--scene-file", str(ROOT / "scenes.yaml")]) == 0
+    assert described in capsys.readouterr().out
+
+
+def test_a_techniques_own_maps_are_shown(built, run_dir):
+    """lispsm stores its texel-size map with its run; the viewer shows it with its range."""
+    _, page = built
+    df = results.load(run_dir)
     row = df[(df["technique"] == "lispsm") & (df["scene"] == "box_plane")
              & (df["width"] == 96)].iloc[0]
     with np.load(run_dir / row["array"]) as z:
         texel_map = z["map_pixels_per_texel_log2"]
-    assert texel_map.shape == (96, 96) and np.isfinite(texel_map).any()
-    # the stored map agrees with the run's own column: the largest texel in pixels
-    assert 2 ** np.nanmax(texel_map) == pytest.approx(row["alias_max"], rel=1e-5)
-    png = Path(row["array"]).stem + "-map-pixels_per_texel_log2.png"
-    assert png in page
-    assert (run_dir / "images" / "box_plane" / "96x96" / png).is_file()
+    runs = [r for d in scene_data(page) for r in d["runs"]
+            if r["technique"] == "lispsm" and r["size"] == "96x96" and r["images"]]
+    maps = [m for r in runs for m in r["images"]["maps"]]
+    assert maps and maps[0]["name"] == "pixels_per_texel_log2"
+    finite = texel_map[np.isfinite(texel_map)]
+    assert min(m["lo"] for m in maps) >= finite.min() - 1e-6
+
+
+# --- what the page is built from ----------------------------------------------------------------
+
+def test_theta_plot_appears_with_three_angles():
+    """alias_mean and edge_mae against theta per technique, joined in angle order, only when the
+    runs span three angles or more. Catches a plot drawn from two angles or joined unsorted."""
+    from harness.report import plots
+
+    rows = pd.DataFrame({
+        "scene": ["a", "b", "c", "a"], "technique": ["psm"] * 3 + ["sm"], "width": [64] * 4,
+        "height": [64] * 4, "params": [{"res": 512}] * 4, "theta_deg": [60.0, 20.0, 40.0, 60.0],
+        "alias_mean": [1.5, 3.0, 2.0, np.nan], "edge_mae": [0.1, 0.3, 0.2, 0.05]})
+    spec = plots.theta(rows, {"psm": "#111", "sm": "#222"})
+    alias = next(f for f in spec["facets"] if f["title"] == "alias_mean")
+    assert [(p["x"], p["y"]) for p in alias["series"][0]["points"]] == [
+        (20.0, 3.0), (40.0, 2.0), (60.0, 1.5)]
+    assert plots.theta(rows[rows["scene"] != "c"], {"psm": "#111", "sm": "#222"}) is None
+
+
+def test_noisy_runs_are_counted_and_warned_of_beyond_five_percent():
+    """Catches a warning that never fires (or always does) and noisy counted among untimed."""
+    from harness.report import overview
+
+    def counts(noisy):
+        rows = pd.DataFrame({"status": ["ok"] * len(noisy), "noisy": noisy})
+        return overview.counts(rows, rows)
+
+    assert counts([1, 0] + [0] * 18) == {**counts([1, 0] + [0] * 18), "noisy": 1, "timed": 20,
+                                         "noisy_warning": False}
+    assert counts([1, 1] + [0] * 18)["noisy_warning"]
+    assert counts([np.nan] * 5)["timed"] == 0
+
+
+def test_rewording_a_description_keeps_the_scene_key(shipped_scenes):
+    """The description is prose: references and run ids must not change with it. Catches a
+    scene key that hashes every field."""
+    from harness.scene import scene_key
+
+    scene = shipped_scenes["box_plane"]
+    reworded = scene.model_copy(update={"description": "something else"})
+    moved = scene.model_copy(update={"ambient": 0.3})
+    assert scene_key(reworded) == scene_key(scene) != scene_key(moved)
+
+
+def test_evaluate_takes_a_scene_name_and_a_scene_file(gl_context):
+    """``evaluate("box_plane", ...)`` failed with AttributeError on a str."""
+    from harness.runner import evaluate
+
+    result = evaluate("box_plane", "sm", scene_file=ROOT / "scenes.yaml", resolution=(48, 32),
+                      samples=4)
+    assert result.row["status"] == "ok" and result.visibility.shape == (32, 48)

@@ -1,0 +1,79 @@
+"""The dashboard: ``DIR/index.html`` built only from stored results (``results.csv``,
+``manifest.json`` and the run arrays); it never renders.
+
+One self-contained file: its stylesheet, its scripts (``static/charts.js``, a small SVG plotter,
+and ``static/page.js``) and every image (PNG data URIs at the size shown) are inside it, so it
+works copied on its own and offline. Images larger than shown are also written at native size
+under ``DIR/images/``, which the viewer opens on a click when they are there.
+
+The page's parts, one module each:
+
+- ``overview``: across all scenes, per technique its share of cost-accuracy fronts, its median
+  cost ratio to sm at equal error and its worst case; the renderer's caveat; failures and noisy
+  runs counted; the table of scenes (thumbnail, description, the cheapest good-enough pick);
+- ``scene_section``: per scene the cost-accuracy plot (``plots``), which technique within each
+  error threshold and time budget, every run in a table;
+- ``viewer``: any run's reference, V, signed error, shaded image, worst edge crops and maps;
+- ``stability``: scenes x techniques with failures, NaN/Inf and V outside [0, 1];
+- ``papers``: the Papers page; ``compare``: two results folders run by run.
+
+Names and values from the results reach the page only through autoescaped templates
+(``render``) and arrays are read only from inside the folder (``stored``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+
+from .. import analysis
+from . import images, overview, plots
+from .papers import build_papers_page, papers_link
+from .render import render, write_page
+from .scene_section import scene_section, shown_rows
+from .stability import stability_table
+from .stored import Folder, slug
+from .viewer import SceneImages
+
+__all__ = ["build_report", "build_papers_page", "visibility_png"]
+
+
+def visibility_png(v, covered, path: Path) -> None:
+    """V as the dashboard shows it (grey, uncovered blue-grey), at native size."""
+    images.write_png(images.visibility(v, covered), images.VISIBILITY, Path(path))
+
+
+def build_report(out_dir: str | Path) -> Path:
+    """Write ``out_dir/index.html`` (and its native-size images) from the stored results;
+    returns its path. ConfigError when the folder holds no results (``stored.read_results``)."""
+    folder = Folder(out_dir)
+    everything = folder.rows()
+    meta = folder.manifest()
+    current = analysis.current(everything)
+    shown = shown_rows(everything, current)
+    colours = plots.colours(shown["technique"])
+    described = meta.get("scenes") if isinstance(meta.get("scenes"), dict) else {}
+    cheapest = analysis.cheapest_at_error(current)
+    budgets = analysis.best_within_budget(current)
+    scenes = []
+    for name in dict.fromkeys(shown["scene"]):
+        section = scene_section(
+            SceneImages(folder, name), shown[shown["scene"] == name],
+            current[current["scene"] == name], cheapest[cheapest["scene"] == name],
+            budgets[budgets["scene"] == name], colours,
+            (described.get(name) or {}).get("description"))
+        section["slug"] = slug(name)
+        section["pick"] = overview.scene_pick(cheapest, name, [
+            tuple(map(int, s.split("x"))) for s in section["sizes"]])
+        section["failed"] = sum(r["status"] == "error" for r in section["runs"])
+        scenes.append(section)
+    page = render(
+        "index.html.j2", folder=str(out_dir), meta=meta,
+        caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
+        hidden=len(everything) - len(shown),
+        summaries=overview.summaries(current, shown, colours), colours=colours,
+        scenes=scenes, stability=stability_table(shown),
+        theta=plots.theta(current, colours), notes=folder.notes,
+        papers=papers_link(folder.root),
+        built=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))
+    return write_page(folder.root / "index.html", page)

@@ -1,0 +1,165 @@
+"""``shadowbench compare A B``: the runs two results folders have in common, matched by scene,
+image size, technique and parameters, and what changed from A to B in time and in error.
+
+Time is worse when B's is more than ``factor`` times A's and, where both runs carry a timing
+interval (``time_ms_ci_low``/``high``), B's interval lies wholly above A's; an error metric is
+worse when it grew by more than ``tolerance`` of A's value (and by more than rounding); a run
+that was ok in A and is not in B is worse. Like ``asv compare``: exit 0, or 1 when something
+got worse. A folder that holds no shadowbench results of this version, or two folders with no
+run in common, are bad input (:class:`ConfigError`, exit 2)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from ..config import ConfigError
+from .plots import number
+from .render import number as shown, render, write_page
+from .stored import read_results
+
+KEY = ["scene", "width", "height", "technique", "params_key"]
+ERRORS = ("edge_mae", "wrong_pct", "mae")
+ROUNDING = 1e-9  # error changes below this are equal
+
+
+def load(folder: Path) -> pd.DataFrame:
+    """The latest row of each run in ``folder`` (ConfigError when it holds no results)."""
+    rows = read_results(folder)
+    rows = rows.assign(params_key=rows["params"].map(lambda p: json.dumps(p, sort_keys=True)))
+    return rows.drop_duplicates(subset=KEY, keep="last")
+
+
+@dataclass
+class Comparison:
+    before: Path
+    after: Path
+    rows: list[dict]  # one per run in common, worse first
+    only_before: int
+    only_after: int
+    factor: float
+    tolerance: float
+
+    @property
+    def worse(self) -> int:
+        return sum(r["verdict"] == "worse" for r in self.rows)
+
+    @property
+    def better(self) -> int:
+        return sum(r["verdict"] == "better" for r in self.rows)
+
+
+def _interval(row) -> tuple[float, float] | None:
+    low, high = number(row.get("time_ms_ci_low")), number(row.get("time_ms_ci_high"))
+    return (low, high) if low is not None and high is not None else None
+
+
+def time_change(a, b, factor: float) -> tuple[str, float | None]:
+    """("worse" | "better" | "same", B / A): beyond ``factor`` and, where both runs have an
+    interval, with the intervals apart."""
+    ta, tb = number(a.get("time_ms")), number(b.get("time_ms"))
+    if not ta or not tb:
+        return "same", None
+    ratio = tb / ta
+    ia, ib = _interval(a), _interval(b)
+    if ratio > factor and (ia is None or ib is None or ib[0] > ia[1]):
+        return "worse", ratio
+    if ratio < 1 / factor and (ia is None or ib is None or ib[1] < ia[0]):
+        return "better", ratio
+    return "same", ratio
+
+
+def error_change(a: float, b: float, tolerance: float) -> str:
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return "same"
+    margin = tolerance * abs(a) + ROUNDING
+    return "worse" if b - a > margin else "better" if a - b > margin else "same"
+
+
+def _value(row, column: str) -> float:
+    v = number(row.get(column))
+    return math.nan if v is None else v
+
+
+def compare(before: str | Path, after: str | Path, *, factor: float = 1.1,
+            tolerance: float = 0.05) -> Comparison:
+    before, after = Path(before), Path(after)
+    a, b = load(before), load(after)
+    matched = a.merge(b, on=KEY, suffixes=("_a", "_b"))
+    if matched.empty:
+        raise ConfigError(f"{before} and {after}: no run in common (same scene, image size, "
+                          "technique and parameters)")
+    rows = []
+    for _, m in matched.iterrows():
+        ra = {c[:-2]: m[c] for c in m.index if c.endswith("_a")}
+        rb = {c[:-2]: m[c] for c in m.index if c.endswith("_b")}
+        changes = {}
+        if ra["status"] == "ok" and rb["status"] != "ok":
+            changes["status"] = "worse"
+        elif ra["status"] != "ok" and rb["status"] == "ok":
+            changes["status"] = "better"
+        time_verdict, ratio = time_change(ra, rb, factor)
+        changes["time_ms"] = time_verdict
+        for metric in ERRORS:
+            changes[metric] = error_change(_value(ra, metric), _value(rb, metric), tolerance)
+        verdicts = set(changes.values())
+        verdict = "worse" if "worse" in verdicts else "better" if "better" in verdicts else "same"
+        rows.append({
+            "scene": m["scene"], "size": f"{int(m['width'])}x{int(m['height'])}",
+            "technique": m["technique"],
+            "params": ", ".join(f"{k}={v}" for k, v in json.loads(m["params_key"]).items()),
+            "status": (ra["status"], rb["status"]), "ratio": ratio, "verdict": verdict,
+            "changes": changes,
+            "time": [(number(r.get("time_ms")), _interval(r)) for r in (ra, rb)],
+            "errors": {metric: (_value(ra, metric), _value(rb, metric)) for metric in ERRORS}})
+    order = {"worse": 0, "better": 1, "same": 2}
+    rows.sort(key=lambda r: (order[r["verdict"]], r["scene"], r["size"], r["technique"]))
+    keys_a, keys_b = set(map(tuple, a[KEY].values)), set(map(tuple, b[KEY].values))
+    return Comparison(before, after, rows, len(keys_a - keys_b), len(keys_b - keys_a),
+                      factor, tolerance)
+
+
+MARK = {"worse": "+", "better": "-", "same": " "}
+
+
+def _time_text(value: float | None, interval) -> str:
+    if value is None:
+        return "–"
+    return shown(value) + (f" [{shown(interval[0])}, {shown(interval[1])}]" if interval else "")
+
+
+def text(c: Comparison, *, only_changed: bool = False) -> str:
+    """The comparison as a plain table (``+`` worse, ``-`` better), then a summary line."""
+    head = ["", "scene", "size", "technique", "time_ms before", "after", "ratio"] + [
+        f"{m} before → after" for m in ERRORS] + ["parameters"]
+    lines = [head]
+    for r in c.rows:
+        if only_changed and r["verdict"] == "same":
+            continue
+        status = "" if r["status"] == ("ok", "ok") else f" ({r['status'][0]} → {r['status'][1]})"
+        lines.append([MARK[r["verdict"]], r["scene"], r["size"], r["technique"] + status,
+                      _time_text(*r["time"][0]), _time_text(*r["time"][1]),
+                      f"{r['ratio']:.2f}" if r["ratio"] else "–"]
+                     + [f"{shown(x) or '–'} → {shown(y) or '–'}" + (
+                         " *" if r["changes"][m] != "same" else "")
+                        for m, (x, y) in r["errors"].items()] + [r["params"]])
+    widths = [max(len(row[i]) for row in lines) for i in range(len(head) - 1)]
+    out = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)) + "  " + row[-1]
+           for row in lines]
+    out.append(summary(c))
+    return "\n".join(line.rstrip() for line in out)
+
+
+def summary(c: Comparison) -> str:
+    return (f"{len(c.rows)} runs in common ({c.only_before} only in {c.before}, {c.only_after} "
+            f"only in {c.after}): {c.worse} worse, {c.better} better (time beyond {c.factor:g}x "
+            f"and its interval, errors beyond {c.tolerance:.0%})")
+
+
+def write_html(c: Comparison, path: str | Path) -> Path:
+    page = render("compare.html.j2", c=c, errors=ERRORS, summary=summary(c), mark=MARK)
+    return write_page(Path(path), page)

@@ -1,0 +1,70 @@
+"""The overview: the answer across all scenes in one screen. Per technique, how often it is on a
+scene's cost-accuracy front, its median cost ratio to sm at equal error and its worst case
+(:func:`harness.analysis.summary`, for every cost and error axis the results have); the
+renderer and what its times mean; failures and noisy runs counted; then the table of scenes."""
+
+from __future__ import annotations
+
+from .. import analysis
+from . import plots
+
+NOISY_WARNING_SHARE = 0.05  # more noisy runs than this share earns a warning
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
+
+
+def caveat(meta: dict, rows) -> str:
+    """One line: what renderer produced the times and what they are good for."""
+    gl = meta.get("gl") or {}
+    renderer = gl.get("renderer") or next(
+        (r for r in rows.get("renderer", []) if isinstance(r, str) and r), "an unknown renderer")
+    if any(name in renderer.lower() for name in SOFTWARE_RENDERERS):
+        return (f"Rendered by {renderer}, a software rasteriser: its times rank CPU cost, not "
+                "GPU cost; the counted work (fragments, memory, fetches) holds on any GPU.")
+    timer = gl.get("timer")
+    return f"Rendered by {renderer}" + (f"; times from {timer} timers." if timer else ".")
+
+
+def counts(shown, current) -> dict:
+    """Runs shown, ok, failed, skipped and noisy (timed with other processes busy)."""
+    timed = current[plots.has_number(current, "noisy")]
+    noisy = sum(bool(plots.number(v)) for v in timed["noisy"]) if len(timed) else 0
+    return {"runs": len(shown), "ok": int((shown["status"] == "ok").sum()),
+            "failed": int((shown["status"] == "error").sum()),
+            "skipped": int((shown["status"] == "skipped").sum()),
+            "noisy": noisy, "timed": len(timed),
+            "noisy_warning": noisy > NOISY_WARNING_SHARE * len(timed)}
+
+
+def summaries(current, shown, colours: dict[str, str]) -> list[dict]:
+    """One table per (cost, error) axis pair: per technique its front share, cost ratio to sm
+    at equal error and worst case, with its failed and noisy runs."""
+    failed = shown[shown["status"] == "error"].groupby("technique").size()
+    tables = []
+    for cost, cost_title in plots.axes(current, plots.COSTS).items():
+        for error, error_title in plots.axes(current, plots.ERRORS).items():
+            table = analysis.summary(current, cost=cost, error=error)
+            rows = []
+            for r in table.to_dict("records"):
+                rows.append({**r, "colour": colours.get(r["technique"], "#888"),
+                             "failed": int(failed.get(r["technique"], 0))})
+            tables.append({"cost": cost, "error": error, "cost_title": cost_title,
+                           "error_title": error_title, "rows": rows})
+    return tables
+
+
+def scene_pick(cheapest, scene: str, sizes: list[tuple[int, int]]) -> dict | None:
+    """The cheapest technique within 1.5 x edge_floor at the scene's largest size (else within
+    1 % wrong pixels), for the table of scenes."""
+    if cheapest.empty or not sizes:
+        return None
+    w, h = sizes[-1]
+    here = cheapest[(cheapest["scene"] == scene) & (cheapest["width"] == w)
+                    & (cheapest["height"] == h) & cheapest["cheapest"].astype(bool)]
+    for metric, level, text in (("edge_mae", 1.5, "edge_mae ≤ 1.5 × edge_floor"),
+                                ("wrong_pct", 1, "wrong_pct ≤ 1 %")):
+        hit = here[(here["metric"] == metric) & (here["level"] == level)]
+        if len(hit):
+            r = hit.iloc[0]
+            return {"technique": r["technique"], "setting": r["setting"] or "",
+                    "criterion": text, "size": plots.size_label(w, h)}
+    return None
