@@ -11,7 +11,7 @@ from scipy import ndimage
 
 EDGE_WIDTH = 2  # pixels either side of a reference shadow boundary
 # part of every run id: a change to what the metrics compare makes stored results stale
-VERSION = 2
+VERSION = 3
 
 
 def _check(v: np.ndarray, ref: np.ndarray, mask: np.ndarray | None):
@@ -79,6 +79,41 @@ def edge_mae(v, ref, *, mask=None, width: int = EDGE_WIDTH) -> float:
     """Mean |V - V_ref| within ``width`` pixels of a reference shadow boundary."""
     v, ref, mask = _check(v, ref, mask)
     return _mean(np.abs(v - ref)[edge_band(ref, mask=mask, width=width)])
+
+
+def _outside_band_pct(wrong: np.ndarray, ref: np.ndarray, mask: np.ndarray, width: int) -> float:
+    """Percent of the masked pixels that are ``wrong`` and lie outside the edge band."""
+    if not mask.any():
+        return float("nan")
+    counted = wrong & mask & ~edge_band(ref, mask=mask, width=width)
+    return float(100.0 * counted.sum() / mask.sum())
+
+
+def acne_pct(v, ref, *, mask=None, width: int = EDGE_WIDTH, threshold: float = 0.98) -> float:
+    """False shadow on lit surfaces: percent of the masked pixels that the reference sees fully
+    lit (V_ref == 1), that lie outside the edge band, and where V < ``threshold``.
+
+    The denominator is every masked (compared) pixel, not the lit ones, so ``acne_pct`` and
+    ``leak_pct`` add up to the share of all compared pixels wrong away from shadow edges."""
+    v, ref, mask = _check(v, ref, mask)
+    return _outside_band_pct((ref == 1.0) & (v < threshold), ref, mask, width)
+
+
+def leak_pct(v, ref, *, mask=None, width: int = EDGE_WIDTH, threshold: float = 0.02) -> float:
+    """Light through occluders: percent of the masked pixels that the reference sees fully
+    shadowed (V_ref == 0), that lie outside the edge band, and where V > ``threshold``.
+
+    Like :func:`acne_pct`, the denominator is every masked (compared) pixel."""
+    v, ref, mask = _check(v, ref, mask)
+    return _outside_band_pct((ref == 0.0) & (v > threshold), ref, mask, width)
+
+
+def edge_floor(ref, *, mask=None, width: int = EDGE_WIDTH) -> float:
+    """The best ``edge_mae`` a technique answering only 0 or 1 can reach on this reference: the
+    ``edge_mae`` of the reference rounded to 0/1 against itself (ties at 0.5 cost 0.5 either
+    way)."""
+    _, ref, mask = _check(ref, ref, mask)
+    return edge_mae(np.rint(ref), ref, mask=mask, width=width)
 
 
 def levels(v, ref, *, mask=None, width: int = EDGE_WIDTH, decimals: int = 5) -> int:

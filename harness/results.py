@@ -28,6 +28,7 @@ COLUMNS: dict[str, type] = {
     "gpu_estimate_ms": float,
     "mae": float, "rmse": float, "wrong_pct": float, "edge_mae": float, "ssim": float,
     "psnr": float, "flip": float, "levels": float,
+    "acne_pct": float, "leak_pct": float, "edge_floor": float, "edge_ratio": float,
     "nonfinite": float, "v_min": float, "v_max": float,
     "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
     "code_version": str, "ref_samples": int, "ref_seconds": float, "array": str,

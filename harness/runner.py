@@ -529,7 +529,13 @@ def _score(timed: _Timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]
         levels=metrics.levels(v_clean, ref_v, mask=mask),
         ssim=metrics.ssim(v_clean, ref_v, mask=mask),
         psnr=metrics.psnr(v_clean, ref_v, mask=mask),
+        acne_pct=metrics.acne_pct(v_clean, ref_v, mask=mask),
+        leak_pct=metrics.leak_pct(v_clean, ref_v, mask=mask),
+        edge_floor=metrics.edge_floor(ref_v, mask=mask),
     )
+    # edge_mae as a multiple of the best a 0/1 answer can do; empty where that best is 0
+    floor = row["edge_floor"]
+    row["edge_ratio"] = row["edge_mae"] / floor if floor > 0 else None
     images = {}
     if reference.direct is not None:
         a = frame.arrays

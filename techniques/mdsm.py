@@ -16,7 +16,7 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from .shadowmap import FilteredShadowMap
+from .shadowmap import FilteredShadowMap, Sampling
 
 DEPTH_COUNTS = (1, 2, 3, 4)
 WINDOW_SAMPLES = (4, 9, 16, 25)
@@ -29,6 +29,9 @@ class DepthSelection:
 
     def __init__(self, res: int, n: int, q: int, select: str, extra: str):
         self.fbo = Framebuffer(res, res, (GL.GL_RGBA32F,), depth=False)
+        side = math.isqrt(q)
+        # texel offsets the window spans (odd sides centred, even ones one further right)
+        self.window = (-((side - 1) // 2), side - 1 - (side - 1) // 2)
         self.program = Technique.shader(
             __file__, "fullscreen.vert.glsl", "mdsm_select.frag.glsl", N_DEPTHS=n,
             WINDOW=math.isqrt(q), SELECT_SORT=int(select == "sort"),
@@ -65,7 +68,8 @@ class MultipleDepthShadowMap(Technique):
     (``extra: min``) for n = 2 and both for n = 3; ``sort`` sorts the q samples into n groups and
     keeps each group's middle sample, the base depth replacing its own group's), ``shading``
     (k fetches per pixel). For n = 1 the n-SM is the standard map: no selection pass runs and V
-    equals pcf's with the same k, res and bias. ``extra`` applies to n = 2 with minmax only:
+    equals pcf's with ``region: fixed``, ``res_factor: 1`` and the same k, res and bias (the
+    paper's regular kernel, not pcf's default footprint region). ``extra`` applies to n = 2 with minmax only:
     setting it otherwise is an error, and there it is left out of the stored parameters (so
     they validate again).
 
@@ -78,6 +82,14 @@ class MultipleDepthShadowMap(Technique):
     shadowed point, while its "otherwise" case (d <= every Z_i) has no Z_i smaller than d. The
     counting definition here is what the text around it and the 2-SM decision tree (Figure 4:
     0, 0.5, 1) describe.
+
+    Bias: every depth read gets ``bias`` (scene units) plus ``slope_bias`` times the receiver
+    plane's depth slope per texel times the distance in texels from the point to the texel the
+    depth came from (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and Schueler
+    2006). A selected depth may come from any texel of the cell's window, so for n > 1 the
+    distance is to the window's farthest texel: the sample's offset plus the window radius
+    ((sqrt(q) - 1) / 2 texels each way, one more to the right and top for even windows). For
+    n = 1 it is pcf's and sm's term.
 
     Empty map cells hold the clear depth 3e38 (lit); representatives are picked, never averaged,
     so no depth overflows. Extra result columns: ``select_fetches`` (q x res^2, 0 for n = 1),
@@ -94,7 +106,9 @@ class MultipleDepthShadowMap(Technique):
     ``select``         ``minmax`` (n <= 3) or ``sort``                   minmax
     ``extra``          n = 2 with minmax only: ``max`` or ``min``        max      max, min
     ``bias``           constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``     slope-scaled bias, texels x tan(incidence)        0.0      >= 0
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+                       distance to the farthest texel a depth may come
+                       from
     =================  ================================================  =======  ================
     """
 
@@ -115,7 +129,7 @@ class MultipleDepthShadowMap(Technique):
         # one run id
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
-        slope_bias: float = Field(0.0, ge=0)
+        slope_bias: float = Field(1.0, ge=0)
 
         @field_validator("n", "k", "q", mode="wrap")
         @classmethod
@@ -172,8 +186,9 @@ class MultipleDepthShadowMap(Technique):
         if self.selection:
             with frame.measure("mdsm_select"):
                 self.selection.render(frame, base.fbo.colors[0])
-        self.passes.shade(frame, grid_n=math.isqrt(p.k), spacing=1.0, bias_min=p.bias,
-                          bias_max=p.bias, slope_bias=p.slope_bias, jitter=False, seed=0,
+        self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
+                                          bias_max=p.bias, slope_bias=p.slope_bias,
+                                          window=self.selection.window if self.selection else (0, 0)),
                           texture=self.selection.texture if self.selection else None)
         q = p.q if self.selection else 0
         shaded = int(frame.arrays.covered.sum())

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from OpenGL import GL
 
@@ -40,53 +42,86 @@ class LightDepthMap:
 
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame,
                         texture: Texture | None = None) -> dict:
-        """Uniforms of shadow_map.glsl, with the map bound to texture ``unit``.
+        """Uniforms of shadow_map.glsl, with the map bound to texture ``unit``; ``slope_bias``
+        scales its slope term (receiver plane's slope x each read's distance).
 
         ``texture`` replaces the depth map by another res x res texture on the same frustum
         (e.g. one holding several depths per cell)."""
-        light = frame.scene.light
-        vector = (np.append(light.direction, 0.0) if light.type == "directional"
-                  else np.append(light.position, 1.0))
         f = self.frustum
         texture = texture or self.fbo.colors[0]
-        return dict(shadow_map=texture.bind(unit), light_view=f.view,
-                    light_proj=f.proj, map_res=float(self.res), light_is_ortho=f.is_ortho,
-                    texel_world=f.texel_world, light_vector=vector, slope_bias=slope_bias)
+        return dict(shadow_map=texture.bind(unit), light_view=f.view, light_proj=f.proj,
+                    map_res=float(self.res), light_is_ortho=f.is_ortho, slope_bias=slope_bias)
 
     def release(self) -> None:
         self.fbo.release()
         self.program.release()
 
 
+@dataclass(frozen=True)
+class Sampling:
+    """Where the percentage-closer samples of one pixel fall and how each is biased (the
+    uniforms of pcf_samples.glsl; its header says what each means)."""
+
+    grid_n: int = 1
+    footprint_region: bool = False  # the pixel's footprint in the map, else a fixed region
+    res_factor: float = 1.0  # footprint region: times the footprint
+    min_size: float = 1.0  # footprint region: smallest side, texels
+    spacing: float = 1.0  # fixed region: sub-region side, texels
+    jitter: bool = False
+    seed: int = 0
+    bias_min: float = 0.0  # constant bias drawn per sample, scene units
+    bias_max: float = 0.0
+    slope_bias: float = 1.0  # times the receiver plane's slope x each read's distance
+    window: tuple[int, int] = (0, 0)  # a texel's depths come from offsets window[0]..window[1]
+
+
+def camera_rays(frame: Frame) -> dict:
+    """Uniforms giving the world-space camera ray through any window position (x, y):
+    camera_ray + x camera_ray_dx + y camera_ray_dy (linear for a pinhole camera)."""
+    inverse = np.linalg.inv(frame.camera.view_proj)
+    origin = frame.camera.position
+
+    def ray(x: float, y: float) -> np.ndarray:
+        ndc = np.array([2 * x / frame.width - 1, 2 * y / frame.height - 1, 0.0, 1.0])
+        point = inverse @ ndc
+        direction = point[:3] / point[3] - origin
+        return direction / -(frame.camera.view[2, :3] @ direction)  # unit view depth
+
+    base = ray(0.0, 0.0)
+    return dict(camera_position=origin, camera_ray=base, camera_ray_dx=ray(1.0, 0.0) - base,
+                camera_ray_dy=ray(0.0, 1.0) - base)
+
+
 class FilteredShadowMap:
     """Two passes: the light depth map, then full-screen PCF shading into V.
 
     The shading shader is ``pcf.frag.glsl`` unless ``fragment`` names another one built on
-    ``pcf_samples.glsl`` (same grid, its own per-sample test; ``defines`` go to it)."""
+    ``pcf_samples.glsl`` (same samples, its own per-sample test; ``defines`` go to it)."""
 
     def __init__(self, frame: Frame, res: int, fragment: str = "pcf.frag.glsl", **defines):
         self.map = LightDepthMap(frame, res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
-    def render(self, frame: Frame, *, grid_n: int, spacing: float, bias_min: float,
-               bias_max: float, slope_bias: float, jitter: bool, seed: int) -> None:
+    def render(self, frame: Frame, sampling: Sampling) -> None:
         with frame.measure("shadow_map"):
             self.map.render(frame)
-        self.shade(frame, grid_n=grid_n, spacing=spacing, bias_min=bias_min, bias_max=bias_max,
-                   slope_bias=slope_bias, jitter=jitter, seed=seed)
+        self.shade(frame, sampling)
 
-    def shade(self, frame: Frame, *, grid_n: int, spacing: float, bias_min: float,
-              bias_max: float, slope_bias: float, jitter: bool, seed: int,
-              texture: Texture | None = None) -> None:
+    def shade(self, frame: Frame, sampling: Sampling, texture: Texture | None = None) -> None:
         """The shading pass alone, on the map already rendered (or on ``texture``)."""
+        s = sampling
         with frame.measure("shading"):
             frame.begin_visibility()
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
-            self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame, texture))
-            self.shading.set(grid_n=grid_n, spacing=spacing, bias_min=bias_min,
-                             bias_max=bias_max, jitter=jitter)
-            GL.glUniform1ui(self.shading.location("seed"), seed)
+            self.shading.set(**self.map.lookup_uniforms(unit, s.slope_bias, frame, texture))
+            self.shading.set(**camera_rays(frame))
+            self.shading.set(grid_n=s.grid_n, footprint_region=s.footprint_region,
+                             res_factor=s.res_factor, min_size=s.min_size, spacing=s.spacing,
+                             bias_min=s.bias_min, bias_max=s.bias_max, jitter=s.jitter,
+                             window_low=np.full(2, float(s.window[0])),
+                             window_high=np.full(2, float(s.window[1])))
+            GL.glUniform1ui(self.shading.location("seed"), s.seed)
             frame.draw_fullscreen()
 
     def release(self) -> None:

@@ -53,9 +53,21 @@ class SilhouetteMap(Technique):
     * ``shading``: four corner depth tests; where they disagree, the skewed-quadrant
       reconstruction from the texel's point and its four neighbours' (eight line tests).
 
+    Bias: the four corner depths lie up to a texel from the shaded point in each axis (the
+    corner distance), farther than a shadow map's own texel centre, so a constant or a
+    one-texel slope bias lets a surface tilted from the light shadow itself at a corner (box
+    front face, box_plane at map 256). Each corner test gets ``bias`` (scene units) plus
+    ``slope_bias`` times the receiver plane's depth slope per texel times that corner's
+    distance from the point (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006), the
+    rule every map technique here shares. The hidden-silhouette test of pass 2 compares a
+    silhouette point's own depth with the corners and uses ``bias`` alone.
+
     Extra result columns: ``sil_pct`` (percent of shaded pixels that took the silhouette path,
     counted by atomic counters in the shading pass), ``model_bytes_per_px`` (4 + 24 P, the
-    paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges``.
+    paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges``. The paper's P divides
+    its silhouette fill by the scene fill (forward shading: every fragment drawn, overdraw
+    included); ``sil_pct`` divides by the covered pixels, each shaded once in the deferred
+    pass, so the two agree only where the scene has no overdraw.
     ``fetches_per_px`` = 4 + 5 P; ``mem_bytes`` = depth map (with its depth buffer) +
     silhouette map.
 
@@ -64,8 +76,8 @@ class SilhouetteMap(Technique):
     ==================  ==============================================  =======  ===========
     ``res``             width and height of both maps, texels           1024     16 .. 8192
     ``bias``            constant depth bias, scene units                0.02     >= 0
-    ``slope_bias``      slope-scaled bias, texels x tan(incidence),     1.0      >= 0
-                        as in ``sm``
+    ``slope_bias``      times the receiver plane's depth slope x each   1.0      >= 0
+                        corner's distance, texels
     ``center_points``   debug: store every silhouette point at its      false
                         texel's centre (the paper's degenerate case,
                         equal to a shadow map on the offset depth map)

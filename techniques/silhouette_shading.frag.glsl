@@ -53,15 +53,16 @@ void main() {
     vec3 p, n;
     if (!gbuffer_fetch(p, n)) { visibility = 1.0; return; }
     atomicCounterIncrement(shaded_pixels);
-    LightSample s = to_light(p);
-    if (!s.in_front) { visibility = 1.0; return; }
-    float b = bias + slope_scaled_bias(n, p, s.depth);
-    vec2 u = s.texel - 0.5;   // silhouette-map coordinates
+    Receiver r = receiver(p, n);
+    if (!r.in_front) { visibility = 1.0; return; }
+    vec2 u = r.texel - 0.5;   // silhouette-map coordinates
     vec2 cell = floor(u);
-    float corner[4] = float[4](depth_test(cell + vec2(0.5, 0.5), s.depth, b),
-                               depth_test(cell + vec2(1.5, 0.5), s.depth, b),
-                               depth_test(cell + vec2(0.5, 1.5), s.depth, b),
-                               depth_test(cell + vec2(1.5, 1.5), s.depth, b));
+    // the corner samples lie up to a texel from the point in each axis: each gets the slope
+    // bias of its own distance (shadow_map.glsl)
+    float corner[4] = float[4](receiver_test(r, cell + vec2(0.5, 0.5), bias),
+                               receiver_test(r, cell + vec2(1.5, 0.5), bias),
+                               receiver_test(r, cell + vec2(0.5, 1.5), bias),
+                               receiver_test(r, cell + vec2(1.5, 1.5), bias));
     if (corner[0] == corner[1] && corner[0] == corner[2] && corner[0] == corner[3]) {
         visibility = corner[0];
         return;

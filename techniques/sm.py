@@ -6,22 +6,27 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from .shadowmap import FilteredShadowMap
+from .shadowmap import FilteredShadowMap, Sampling
 
 
 class ShadowMap(Technique):
     """One depth map from the light, one depth comparison per shaded pixel.
 
     Orthographic map fitted to the scene bounds for a directional light, perspective over the
-    cone for a spot light. Map depths are linear light-space distances, so biases are in scene
-    units.
+    cone for a spot light. Map depths are linear light-space distances, so ``bias`` is in
+    scene units. The comparison reads the centre of the point's texel, up to half a texel
+    away from the point in each axis; the bias is ``bias`` plus ``slope_bias`` times the
+    receiver plane's depth slope per texel times that distance (``shadow_map.glsl``, after the
+    receiver plane of Isidoro 2006 and Schueler 2006), the rule every map technique here
+    shares.
 
     ==============  ================================================  =======  ===========
     Parameter       Meaning                                           Default  Range
     ==============  ================================================  =======  ===========
     ``res``         map width and height, texels                      1024     16 .. 8192
     ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  slope-scaled bias, texels x tan(light incidence)  1.0      >= 0
+    ``slope_bias``  times the receiver plane's depth slope x the      1.0      >= 0
+                    distance to the texel read, texels
     ==============  ================================================  =======  ===========
     """
 
@@ -41,8 +46,8 @@ class ShadowMap(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
-        self.passes.render(frame, grid_n=1, spacing=1.0, bias_min=p.bias, bias_max=p.bias,
-                           slope_bias=p.slope_bias, jitter=False, seed=0)
+        self.passes.render(frame, Sampling(bias_min=p.bias, bias_max=p.bias,
+                                           slope_bias=p.slope_bias))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
                             nonfinite=self.passes.map.nonfinite)
 

@@ -688,7 +688,9 @@ PARAMETER_TABLE = """
     ==============  ================================================  =======  ===========
     ``res``         map width and height, texels                      1024     16 .. 8192
     ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  slope-scaled bias, local texels x tan(incidence)  1.0      >= 0
+    ``slope_bias``  times the receiver plane's depth slope x each     1.0      >= 0
+                    read's distance, in the warped map's texels
+                    (shadow_map.glsl)
     ``k``           PCF samples per pixel, a square grid of texels    1        1 .. 49
     ==============  ================================================  =======  ===========
     """

@@ -60,7 +60,7 @@ BAD = [
     ("techniques:\n  sm: {curve: {res: [256, 100000]}}\n",
      "exp.yaml:2: techniques.sm.curve.res: sm.res: Input should be less than or equal to 8192"),
     ("techniques: {sv: {curve: {method: [zpass, nearly]}}}\n",
-     "techniques.sv.curve.method: sv.method: Input should be 'zpass' or 'zfail'"),
+     "techniques.sv.curve.method: sv.method: Input should be 'zpass', 'zfail' or 'nearclip'"),
     ("techniques: {mdsm: {curve: {n: [1, 4]}}}\n",
      "techniques.mdsm.curve.n: mdsm.(parameters): select=minmax allows n in [1, 2, 3]"),
     ("techniques: {sm: {curve: true, product: {res: [256]}}}\n",

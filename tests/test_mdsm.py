@@ -25,7 +25,10 @@ BIAS = {"bias": 0.02, "slope_bias": 2.0}
 
 
 def pcf_params(k, res, bias=0.02, slope_bias=2.0):
-    return {"k": k, "res": res, "bias_min": bias, "bias_max": bias, "slope_bias": slope_bias}
+    """pcf with MDSM's regular kernel: k samples one texel apart (pcf's default region is the
+    pixel footprint, which the paper's comparisons do not use)."""
+    return {"k": k, "res": res, "bias_min": bias, "bias_max": bias, "slope_bias": slope_bias,
+            "region": "fixed", "res_factor": 1.0}
 
 
 def ok(evaluation):
@@ -129,14 +132,40 @@ def test_selection_pass_matches_numpy(gl_context, scene_at, scene_name, n, q, se
 
 # --- the shading pass ---------------------------------------------------------------------------
 
-def pcf_kn_numpy(arrays, depths, n, k, bias, frustum, res):
-    """PCF(k, n) on the regular grid with the n-shadow test, from G-buffer positions."""
+def receiver_depth_slope(frustum, res, points, normals, step=1e-3):
+    """d(light depth)/d(texel) on each point's receiver plane, by central differences: the
+    light rays through the texel positions a step either side, cut with the plane."""
+    view_proj = frustum.view_proj
+    inverse = np.linalg.inv(view_proj)
+    clip = np.c_[points, np.ones(len(points))] @ view_proj.T
+    texel = (clip[:, :2] / clip[:, 3:4] * 0.5 + 0.5) * res
+
+    def depth_on_plane(at):
+        ndc = at / res * 2 - 1
+        ends = [np.c_[ndc, np.full(len(ndc), z), np.ones(len(ndc))] @ inverse.T for z in (-1, 1)]
+        near, far = (e[:, :3] / e[:, 3:4] for e in ends)
+        ray = far - near
+        t = np.einsum("ij,ij->i", normals, points - near) / np.einsum("ij,ij->i", normals, ray)
+        hit = near + t[:, None] * ray
+        return -(np.c_[hit, np.ones(len(hit))] @ frustum.view.T)[:, 2]
+
+    return np.stack([(depth_on_plane(texel + step * e) - depth_on_plane(texel - step * e))
+                     / (2 * step) for e in np.eye(2)], axis=1)
+
+
+def pcf_kn_numpy(arrays, depths, n, k, bias, frustum, res, slope_bias=0.0, window=(0, 0)):
+    """PCF(k, n) on the regular grid with the n-shadow test, from G-buffer positions. Each
+    read is biased by ``bias`` plus ``slope_bias`` x the receiver plane's steepest depth change
+    per texel x the distance to the farthest texel centre of the read texel's window (one of
+    the window's corners)."""
     p = arrays.position[arrays.covered].astype(np.float64)
     homogeneous = np.c_[p, np.ones(len(p))]
     view = homogeneous @ frustum.view.T
     clip = view @ frustum.proj.T
     depth = -view[:, 2]
     texel = (clip[:, :2] / clip[:, 3:4] * 0.5 + 0.5) * res
+    slope = receiver_depth_slope(frustum, res, p, arrays.normal[arrays.covered].astype(np.float64))
+    corners = np.array([(a, b) for a in window for b in window], dtype=np.float64)
     g = math.isqrt(k)
     lit = np.zeros(len(p))
     for j in range(g):
@@ -145,7 +174,10 @@ def pcf_kn_numpy(arrays, depths, n, k, bias, frustum, res):
             inside = ((cell >= 0) & (cell < res)).all(axis=1)
             c = np.clip(cell, 0, res - 1)
             z = depths[c[:, 1], c[:, 0], :n]
-            lit += np.where(inside, (z >= (depth - bias)[:, None]).mean(axis=1), 1.0)
+            reach = cell + 0.5 - texel
+            farthest = np.max([np.linalg.norm(reach + o, axis=1) for o in corners], axis=0)
+            b = bias + slope_bias * np.linalg.norm(slope, axis=1) * farthest
+            lit += np.where(inside, (z >= (depth - b)[:, None]).mean(axis=1), 1.0)
     v = np.ones(arrays.covered.shape)
     v[arrays.covered] = np.where(clip[:, 3] > 0, lit / k, 1.0)
     return v
@@ -155,12 +187,16 @@ def pcf_kn_numpy(arrays, depths, n, k, bias, frustum, res):
     ("box_plane", 2, 9, "minmax"), ("sphere_plane", 3, 4, "minmax"), ("pins", 4, 16, "sort"),
 ])
 def test_shading_matches_numpy(gl_context, scene_at, scene_name, n, k, select):
+    """PCF(k, n) with the default slope bias (slope_bias 1 times each read's distance, the
+    selection window included), recomputed in numpy. Catches a bias that ignores the
+    selection window or the sample's offset."""
     res = 96
     frame, technique, output = render_once(
         scene_at(scene_name, 128), {"res": res, "n": n, "k": k, "select": select, "bias": 0.03})
     try:
         depths = technique.selection.fbo.read()[::-1]
-        want = pcf_kn_numpy(frame.arrays, depths, n, k, 0.03, technique.passes.map.frustum, res)
+        want = pcf_kn_numpy(frame.arrays, depths, n, k, 0.03, technique.passes.map.frustum, res,
+                            slope_bias=1.0, window=technique.selection.window)
     finally:
         technique.release()
         frame.release()

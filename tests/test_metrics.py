@@ -59,6 +59,59 @@ def test_levels_counts_distinct_values_in_band():
     assert metrics.levels(v, ref, width=1) == 4  # 0, 0.25, 0.75, 1
 
 
+def test_acne_and_leak_count_outside_the_edge_band_over_all_compared_pixels():
+    """Breaks caught: the band not left out (the dimmed band pixel would count), a
+    denominator of lit (or shadowed) pixels only (would give 100/45), <= instead of < at the
+    thresholds (the pixels exactly at 0.98 and 0.02 would count), unmasked pixels counted."""
+    ref = np.ones((10, 10))
+    ref[:, :5] = 0.0  # boundary columns 4, 5; width 2: band columns 2..7
+    v = ref.copy()
+    v[0, 9] = 0.97  # acne: lit, outside the band, below 0.98
+    v[1, 9] = 0.98  # at the threshold: not acne
+    v[3, 6] = 0.0  # inside the band: an edge error, not acne
+    v[4, 0] = 0.03  # leak: shadowed, outside the band, above 0.02
+    v[5, 1] = 0.02  # at the threshold: not a leak
+    v[6, 2] = 1.0  # inside the band: not a leak
+    v[9, 8] = 0.0  # not compared
+    mask = np.ones((10, 10), bool)
+    mask[9] = False
+    assert metrics.acne_pct(v, ref, mask=mask) == pytest.approx(100 / 90)
+    assert metrics.leak_pct(v, ref, mask=mask) == pytest.approx(100 / 90)
+    # the band really is what keeps the edge pixels out: with a band of the boundary alone
+    # (columns 4, 5) they count
+    assert metrics.acne_pct(v, ref, mask=mask, width=0) == pytest.approx(200 / 90)
+    assert metrics.leak_pct(v, ref, mask=mask, width=0) == pytest.approx(200 / 90)
+    v[3, 5] = 0.0  # a boundary pixel itself: never outside the band
+    assert metrics.acne_pct(v, ref, mask=mask, width=0) == pytest.approx(200 / 90)
+    # a fractional reference pixel is neither fully lit nor fully shadowed
+    ref[7, 9], v[7, 9] = 0.9375, 0.5
+    assert metrics.acne_pct(v, ref, mask=mask) == pytest.approx(100 / 90)
+    # thresholds are options
+    assert metrics.acne_pct(v, ref, mask=mask, threshold=0.99) == pytest.approx(200 / 90)
+    assert metrics.leak_pct(v, ref, mask=mask, threshold=0.01) == pytest.approx(200 / 90)
+    assert math.isnan(metrics.acne_pct(v, ref, mask=np.zeros((10, 10), bool)))
+    with pytest.raises(ValueError, match="shape"):
+        metrics.leak_pct(np.zeros((2, 2)), np.zeros((2, 3)))
+
+
+def test_edge_floor_is_the_reference_rounded_to_zero_or_one():
+    """Breaks caught: the floor of V_ref against itself (0), rounding a fraction the wrong way
+    (0.75 to 0 would give 0.75 per pixel), the whole image instead of the band."""
+    ref = np.ones((4, 6))
+    ref[:, :3] = 0.0
+    ref[:, 3] = 0.75  # boundary: column 3 (fractional) and column 2 (a jump of 0.75)
+    # width 1: band columns 1..4, 16 pixels; only column 3 errs, by 0.25
+    assert metrics.edge_floor(ref, width=1) == pytest.approx(4 * 0.25 / 16)
+    assert metrics.edge_floor(ref, width=1) == pytest.approx(
+        metrics.edge_mae(np.where(ref >= 0.5, 1.0, 0.0), ref, width=1))
+    mask = np.ones((4, 6), bool)
+    mask[0] = False
+    assert metrics.edge_floor(ref, mask=mask, width=1) == pytest.approx(3 * 0.25 / 12)
+    assert metrics.edge_floor(np.round(ref)) == 0.0  # a 0/1 reference: a 0/1 answer is exact
+    with pytest.raises(ValueError, match="mask"):
+        metrics.edge_floor(ref, mask=np.ones((4, 6)))
+
+
 def test_ssim_psnr_match_scikit_image():
     from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 

@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+from harness import metrics
+
 RESOLUTIONS = (256, 512, 1024, 2048)
 
 
@@ -44,12 +46,51 @@ def test_pcf_16_reaches_many_levels_on_box_plane(scene_at, evaluate):
 
 
 def test_pcf_jitter_is_seeded(scene_at, evaluate):
+    """Same seed, same V; another seed, other sample positions. The bias range is a single value,
+    so the seed can change V only through the jitter. Catches: jitter ignored (V would not
+    depend on the seed), the seed not reaching the shader."""
     s = scene_at("sphere_plane", 128)
-    a = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 7}).visibility
-    b = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 7}).visibility
-    c = evaluate(s, "pcf", {"k": 4, "sampling": "jitter", "seed": 8}).visibility
+    params = {"k": 4, "sampling": "jitter", "bias_min": 0.03, "bias_max": 0.03}
+    a = evaluate(s, "pcf", {**params, "seed": 7}).visibility
+    b = evaluate(s, "pcf", {**params, "seed": 7}).visibility
+    c = evaluate(s, "pcf", {**params, "seed": 8}).visibility
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def pcf_footprint_runs(scene_at, evaluate, size, res, **params):
+    """Soft pixels (0 < V < 1) of pcf on box_plane, and V."""
+    e = evaluate(scene_at("box_plane", size), "pcf", {"res": res, **params})
+    return int(((e.visibility > 0) & (e.visibility < 1) & e.mask).sum()), e.visibility
+
+
+def test_pcf_region_follows_the_pixel_footprint(scene_at, evaluate):
+    """Reeves et al. size the region from the pixel's footprint in the map: a finer map puts
+    more texels under a pixel and the region grows with them, so the soft edge keeps its width
+    in pixels (measured at 128 px: 91 soft pixels with map 1024, 93 with 4096; the earlier
+    region, fixed in texels, gives 31 and 3). Catches a region fixed in texels, or one not
+    scaled by res_factor."""
+    coarse, _ = pcf_footprint_runs(scene_at, evaluate, 128, 1024)
+    fine, _ = pcf_footprint_runs(scene_at, evaluate, 128, 4096)
+    assert coarse > 60
+    assert abs(fine - coarse) < 0.25 * coarse, (coarse, fine)
+    fixed, _ = pcf_footprint_runs(scene_at, evaluate, 128, 4096, region="fixed")
+    assert fixed < 0.5 * fine  # the earlier region, 4 texels: narrow at this map size
+    wider, _ = pcf_footprint_runs(scene_at, evaluate, 128, 4096, res_factor=2.0)
+    assert wider > 1.6 * fine, (fine, wider)
+
+
+def test_pcf_region_never_below_min_size(scene_at, evaluate):
+    """Where a pixel covers less than a texel (map 128 under a 256 image: about 0.4 texels),
+    the region is min_size texels: a smaller res_factor changes nothing, a larger min_size
+    widens the soft edge (measured: 324 soft pixels, 324, 657). Catches the clamp missing
+    (res_factor 0.5 would narrow the edge) or min_size ignored."""
+    base_soft, base = pcf_footprint_runs(scene_at, evaluate, 256, 128)
+    _, halved = pcf_footprint_runs(scene_at, evaluate, 256, 128, res_factor=0.5)
+    assert base_soft > 100
+    assert np.array_equal(base, halved)
+    doubled, _ = pcf_footprint_runs(scene_at, evaluate, 256, 128, min_size=2.0)
+    assert doubled > 1.6 * base_soft, (base_soft, doubled)
 
 
 def test_sm_is_binary(scene_at, evaluate):
@@ -67,11 +108,21 @@ def test_bias_acts_no_bias_gives_acne(scene_at, evaluate):
 
 
 def test_pcf_bias_range_is_drawn_per_sample(scene_at, evaluate):
-    """A bias range between 0 and a safe bias leaves partial acne: fractional V on lit areas."""
+    """Reeves et al. draw each sample's bias from [Bias0, Bias1]. With the receiver-plane term
+    off, bias 0 leaves lit surfaces half in acne and 0.05 nearly none (mean V 0.50 and 0.998
+    outside the edge band, measured); drawn from [0, 0.05], V lies clearly between the two
+    (0.89). Catches a bias fixed at bias_min (V as with 0) or at bias_max (V as with 0.05)."""
     s = scene_at("sphere_plane", 128)
-    e = evaluate(s, "pcf", {"k": 16, "bias_min": 0.0, "bias_max": 0.02, "slope_bias": 0.0})
-    fractional = (e.visibility > 0) & (e.visibility < 1) & e.mask & (e.reference.visibility == 1)
-    assert fractional.mean() > 0.05
+
+    def lit_mean(lo, hi):
+        e = evaluate(s, "pcf", {"k": 16, "bias_min": lo, "bias_max": hi, "slope_bias": 0.0})
+        ref = e.reference.visibility
+        lit = e.mask & (ref == 1) & ~metrics.edge_band(ref, mask=e.mask)
+        return e.visibility[lit].mean()
+
+    none, safe, drawn = lit_mean(0.0, 0.0), lit_mean(0.05, 0.05), lit_mean(0.0, 0.05)
+    assert none < 0.6 and safe > 0.99
+    assert none + 0.2 < drawn < safe - 0.05, (none, drawn, safe)
 
 
 def test_costs_reported(scene_at, evaluate):
