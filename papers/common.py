@@ -24,6 +24,9 @@ PENUMBRA = (0.02, 0.98)
 # wide enough for the widest filtered edge of the paper experiments (a 4 x 4 kernel of 2-pixel
 # texels, 8 px), narrow against their lit and shadowed regions, where penumbra is acne or leaks
 EDGE_WIDTH_BAND = 8
+# edge width is the edge's only where the runs do not self-shadow: acne
+# (harness.metrics.acne_pct) beyond that band below this share of the pixels
+ACNE_MAX_PCT = 0.1
 
 
 @dataclass
@@ -106,6 +109,13 @@ def edge_width_px(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> int:
     v, covered, ref, ref_covered = runs.arrays(row)
     band = metrics.edge_band(ref, mask=covered & ref_covered, width=width)
     return int((band & (v > PENUMBRA[0]) & (v < PENUMBRA[1])).sum())
+
+
+def acne_beyond_edges_pct(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> float:
+    """``harness.metrics.acne_pct`` of a row with the band of :func:`edge_width_px`: a soft edge
+    wider than the row's own 2-pixel band is penumbra there, not acne."""
+    v, covered, ref, ref_covered = runs.arrays(row)
+    return metrics.acne_pct(v, ref, mask=covered & ref_covered, width=width)
 
 
 def signed_pct(value: float, base: float) -> str:

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 from harness import cli, registry, report, results
-from papers import claims, common, gmnpr, mdsm, silhouette, sv
+from papers import claims, common, gmnpr, mdsm, pcf, silhouette, sv
 
 ROOT = Path(__file__).resolve().parent.parent
 REQUIRED = {"paper": str, "where": str, "claim": str, "reported": str, "measured": str,
@@ -58,22 +58,27 @@ def _soft_edge(width_px: int, size: int = 64) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(v, (size, size)).copy(), ref
 
 
-@pytest.mark.parametrize("widths, agrees, reason", [
+@pytest.mark.parametrize("widths, acne_in, agrees, reason", [
     # edge width in fractional columns of PCF(16, 1), the 2-SM PCF(9, 2), the control PCF(9, 1)
-    ({(16, 1): 10, (9, 2): 10, (9, 1): 6}, True, ""),
-    ({(16, 1): 10, (9, 2): 14, (9, 1): 6}, False, "off by more than the tolerance"),
+    ({(16, 1): 10, (9, 2): 10, (9, 1): 6}, None, True, ""),
+    ({(16, 1): 10, (9, 2): 14, (9, 1): 6}, None, False, "wider than the larger kernel's"),
     # an n-SM that ignores its extra depths: PCF(9, 2) == PCF(9, 1), within 17 % of PCF(16, 1)
-    ({(16, 1): 12, (9, 2): 10, (9, 1): 10}, False, "the control is as close"),
+    ({(16, 1): 12, (9, 2): 10, (9, 1): 10}, None, False, "the control is as close"),
+    # the standard map self-shadows lit pixels far from the edge
+    ({(16, 1): 10, (9, 2): 10, (9, 1): 6}, (16, 1), False, "acne beyond the edge band in PCF(16,1)"),
 ])
-def test_mdsm_equivalence_is_in_edge_width_with_a_control(tmp_path, widths, agrees, reason):
-    """Catches the claim without its control (an n-SM ignoring its extra depths passes), and
-    edge width counted outside the edge band (the 2-SM's acne, fractional V far from the edge,
-    would widen it past the tolerance)."""
+def test_mdsm_equivalence_is_in_edge_width_with_a_control(tmp_path, widths, acne_in, agrees,
+                                                         reason):
+    """Catches the claim without its control (an n-SM ignoring its extra depths passes), edge
+    width counted outside the edge band (the 2-SM's fractional V deep in the shadow would widen
+    it past the tolerance) and the claim without its acne bound (the last case would agree)."""
     rows = []
     for (k, n), width in widths.items():
         v, ref = _soft_edge(width)
         if (k, n) == (9, 2):
-            v[::2, :12] = 0.5  # acne on the dark side, beyond 8 px of the edge
+            v[::2, :12] = 0.5  # fractional V in the shadow, beyond 8 px of the edge
+        if (k, n) == acne_in:
+            v[:2, -12:] = 0.9  # 24 lit pixels self-shadowed (0.6 %)
         rows.append(_with_arrays(tmp_path, "mdsm", _row(
             "mdsm", "pins", params={**mdsm.TABLE, "k": k, "n": n}, edge_mae=0.1, levels=k * n + 1),
             v, ref))
@@ -82,6 +87,52 @@ def test_mdsm_equivalence_is_in_edge_width_with_a_control(tmp_path, widths, agre
     assert reason in claim.why_not
     assert "edge width" in claim.claim and "not accuracy" in claim.claim
     assert [r[1] for r in claim.table["rows"]] == [64 * widths[k] for k in [(16, 1), (9, 2), (9, 1)]]
+
+
+@pytest.mark.parametrize("runs, agrees, reason", [
+    # per ResFactor 1, 3, 8: fractional columns at the edge, and rows of 12 fractional pixels far
+    # from it in the shadow (leaks) and on the lit side (acne)
+    ([(4, 0, 0), (8, 0, 0), (12, 0, 0)], True, ""),
+    # the edge does not widen; fractional V spreads deep into the shadow instead
+    ([(4, 0, 0), (4, 20, 0), (4, 40, 0)], False, "does not widen"),
+    # the edge widens, but ResFactor 8 also self-shadows 36 lit pixels far from it (0.9 %)
+    ([(4, 0, 0), (8, 0, 0), (12, 0, 3)], False, "self-shadowing"),
+])
+def test_pcf_figure8_counts_edge_width_near_edges_and_requires_no_acne(tmp_path, runs, agrees,
+                                                                       reason):
+    """Catches penumbra counted over the whole image (the second case would 'widen': 256, 496,
+    736 fractional pixels) and the missing acne bound (the third case would agree)."""
+    rows = []
+    for factor, (width, dark_rows, lit_rows) in zip([1, 3, 8], runs):
+        v, ref = _soft_edge(width)
+        v[:dark_rows, :12] = 0.5
+        v[:lit_rows, -12:] = 0.5
+        rows.append(_with_arrays(tmp_path, "pcf", _row(
+            "pcf", "sphere_plane", 512, params={**pcf.BASE, "res_factor": factor}), v, ref))
+    claim = pcf.figure8(_write(tmp_path, "pcf", rows))
+    assert claim.agrees is agrees
+    assert reason in claim.why_not
+    assert f"ResFactor 8: {64 * runs[2][0]}" in claim.measured
+
+
+def test_pcf_figure9_sees_the_boundary_move_by_pixels(tmp_path):
+    """Bias (0, 0), (0.2, 0.3), (0.3, 0.4) light 0, 2 and 3 columns of the reference shadow
+    next to its edge (the first column is a boundary pixel, not counted). Catches the boundary
+    judged by the rows' leak_pct (beyond the 2-pixel edge band: 0 for all three) instead of
+    from the boundary on."""
+    rows = []
+    for (lo, hi), shift, acne in zip([(0.0, 0.0), (0.028, 0.042), (0.042, 0.056)], [0, 2, 3],
+                                     [5.0, 0.05, 0.0]):
+        v, ref = _soft_edge(2)
+        v = (v > 0.5).astype(float)
+        v[:, 32 - shift:] = 1.0
+        rows.append(_with_arrays(tmp_path, "pcf", _row(
+            "pcf", "sphere_plane", 512, params={**pcf.BASE, "bias_min": lo, "bias_max": hi},
+            acne_pct=acne, leak_pct=0.0), v, ref))
+    acne, boundary = pcf.figure9(_write(tmp_path, "pcf", rows))
+    assert acne.agrees  # 5 % -> 0.05 % -> 0 %
+    assert boundary.agrees
+    assert "(0, 0): 0 %, Bias (0.2, 0.3): 1.56 %, Bias (0.3, 0.4): 3.12 %" in boundary.measured
 
 
 # f / 512^2 of each view: 0.25, 1.0, 1.5, 4.0 (equation 6's crossover: 9 / 7 = 1.29)
