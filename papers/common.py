@@ -118,6 +118,14 @@ def acne_beyond_edges_pct(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> f
     return metrics.acne_pct(v, ref, mask=covered & ref_covered, width=width)
 
 
+def timed_note(rows) -> str:
+    """What a timing claim adds to its measurement when some of its runs were timed while other
+    processes used the CPU (the rows' ``noisy``): their times are inflated."""
+    noisy = sum(r.get("noisy", 0) == 1 for r in rows)  # 0, 1, or empty in older results
+    return (f"; {noisy} of {len(rows)} timed runs noisy (a busy machine: times inflated)"
+            if noisy else "")
+
+
 def signed_pct(value: float, base: float) -> str:
     return f"{100 * (value - base) / base:+.3g} %"
 

@@ -15,6 +15,7 @@ from .common import (
     edge_width_px,
     g,
     signed_pct,
+    timed_note,
 )
 
 PAPER = "Pagot, Comba, Oliveira (MDSM)"
@@ -137,9 +138,10 @@ def crossover_claims(runs: Runs) -> list[Claim]:
     on a software rasterizer a frame's time is not made of fetches alone."""
     mdsm = runs.all("mdsm", n=2, k=9).sort_values("shaded_px")
     res = int(mdsm["params"].iloc[0]["res"])
-    views = []  # (width, f / res^2, PCF fetches, MDSM fetches, PCF ms, MDSM ms)
+    views, timed = [], []  # views: (width, f / res^2, PCF fetches, MDSM fetches, PCF ms, MDSM ms)
     for _, m in mdsm.iterrows():
         p = runs.one("pcf", m["scene"], width=int(m["width"]), k=16)
+        timed += [p, m]
         f = float(m["shaded_px"])
         views.append((int(m["width"]), f / res**2, f * float(p["fetches_per_px"]),
                       float(m["select_fetches"]) + float(m["shading_fetches"]),
@@ -162,7 +164,7 @@ def crossover_claims(runs: Runs) -> list[Claim]:
         f"the shaded fragments f exceed {CROSSOVER} x res^2",
         f"crossover at f = {CROSSOVER} x {res}^2 (a 656^2 view, one fragment per pixel)",
         f"counted fetches {says(fetches, 'fewer')}; times on {runs.rows['renderer'].iloc[0]} "
-        f"(not judged) {says(times, 'faster')}",
+        f"(not judged) {says(times, 'faster')}{timed_note(timed)}",
         f"the paper's {CROSSOVER} x res^2 between the last view where MDSM fetches more and the "
         "first from which it fetches less",
         agrees,
