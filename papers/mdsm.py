@@ -61,6 +61,7 @@ def equivalence(runs: Runs, where: str, scene: str, triples, reported: str) -> C
     outside the tolerance, or a match would not show the extra depths at work (on pins PCF(9, 1)
     is within 12 % of PCF(16, 1) in edge_mae)."""
     width, acne, rows, images, lines, too_far, control_close = {}, {}, [], [], [], [], []
+    below_control = []  # n-SMs narrower than their own kernel on the standard map
 
     def measure(k, n, label):
         if (k, n) not in width:
@@ -78,6 +79,8 @@ def equivalence(runs: Runs, where: str, scene: str, triples, reported: str) -> C
         if abs(w_nsm - w_standard) > EQUIVALENCE_REL * w_standard:
             too_far.append((w_nsm > w_standard, f"PCF({k},{n}) {signed_pct(w_nsm, w_standard)} "
                                                 f"against PCF({big},1)"))
+        if w_nsm < w_control:
+            below_control.append(f"PCF({k},{n}) {signed_pct(w_nsm, w_control)} against PCF({k},1)")
         close = f"PCF({k},1) {signed_pct(w_control, w_standard)} against PCF({big},1)"
         if abs(w_control - w_standard) <= EQUIVALENCE_REL * w_standard and close not in control_close:
             control_close.append(close)
@@ -98,7 +101,10 @@ def equivalence(runs: Runs, where: str, scene: str, triples, reported: str) -> C
                        "the kernel; the paper leaves the window open (\"a neighborhood\")")
     if any(not wider for wider, _ in too_far):
         reasons.append("the n-SM's edge is narrower than the larger kernel's ("
-                       + ", ".join(t for wider, t in too_far if not wider) + ")")
+                       + ", ".join(t for wider, t in too_far if not wider) + ")"
+                       + (f", even narrower than its kernel's alone ({', '.join(below_control)}): "
+                          "its extra depths take shadow from the edge instead of adding it"
+                          if below_control else ""))
     if control_close:
         reasons.append(f"the control is as close ({', '.join(control_close)}): the n-SM's "
                        "kernel alone gives the larger kernel's edge, so the match does not "

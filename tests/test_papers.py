@@ -64,6 +64,8 @@ def _soft_edge(width_px: int, size: int = 64) -> tuple[np.ndarray, np.ndarray]:
     ({(16, 1): 10, (9, 2): 14, (9, 1): 6}, None, False, "wider than the larger kernel's"),
     # an n-SM that ignores its extra depths: PCF(9, 2) == PCF(9, 1), within 17 % of PCF(16, 1)
     ({(16, 1): 12, (9, 2): 10, (9, 1): 10}, None, False, "the control is as close"),
+    # the n-SM's extra depths narrow the edge below its own kernel's
+    ({(16, 1): 12, (9, 2): 6, (9, 1): 8}, None, False, "even narrower than its kernel's alone"),
     # the standard map self-shadows lit pixels far from the edge
     ({(16, 1): 10, (9, 2): 10, (9, 1): 6}, (16, 1), False, "acne beyond the edge band in PCF(16,1)"),
 ])
