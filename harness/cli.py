@@ -1,27 +1,43 @@
 """shadowbench list | run | reference | report | compare.
 
-Exit codes: 0 all runs ok; 1 some runs failed (their rows say why); 2 bad input (one line on
-stderr naming file and key; nothing written).
+Exit codes: 0 all runs ok; 1 some runs failed (their rows say why), or the machine failed the
+command (a full disk: one line naming the file); 2 bad input (one line on stderr naming file
+and key; nothing written); 130 interrupted. Anything else is a bug: its traceback is printed
+under a line asking to report it.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 import time
 import warnings
 from pathlib import Path
 
-from .config import ConfigError, square_number
+from . import interrupt
+from .config import ConfigError
 from .timing import NOISY_CONTENTION, STATISTICS
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
 NOISY_RUNS_WARNING = 0.05  # the summary warns when more than this share of runs is noisy
+MAX_WORKERS = 256
+# OSErrors that say the machine could not finish the command, not that the input was bad
+MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
 
 
-def _csv_list(text: str) -> list[str]:
-    return [t.strip() for t in text.split(",") if t.strip()]
+def _names(option: str, text: str | None) -> list[str] | None:
+    """``a,b`` -> ["a", "b"]; None when the option is absent; an error when it names nothing."""
+    from .config import ConfigError
+
+    if text is None:
+        return None
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise ConfigError(f"{option} {text!r}: names nothing; give comma-separated names, or "
+                          "leave the option out for all")
+    return names
 
 
 def cmd_list(args) -> int:
@@ -61,7 +77,7 @@ def cmd_list(args) -> int:
         if isinstance(meta, at.MultipleOf):
             return f"multiple of {show(meta.multiple_of)}"
         if isinstance(meta, AfterValidator):
-            if meta.func is square_number:
+            if meta.func is config.square_number:
                 return "square number"
             return getattr(meta.func, "__name__", None)
         return None  # other metadata (strictness, ...) says nothing about the range
@@ -81,7 +97,7 @@ def cmd_list(args) -> int:
     path = Path(args.scene_file)
     if path.is_file():
         print(f"scenes ({path}):")
-        for name, scene in config.load_scenes(path).items():
+        for name, scene in config.load_scenes(path, triangle_budget=None).items():
             print(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
                   f"{scene.light.type} light, {len(scene.objects)} objects, effects "
                   f"{'+'.join(scene.effects)}")
@@ -95,24 +111,30 @@ def cmd_list(args) -> int:
 def cmd_run(args) -> int:
     from . import runner
 
+    if args.scheduler and args.executor != "dask":
+        raise ConfigError("--scheduler goes with --executor dask")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise ConfigError(f"--workers: must be in [1, {MAX_WORKERS}], got {args.workers}")
     plan = runner.plan_runs(
         experiment_path=args.experiment, scene_file=args.scene_file,
-        scenes=_csv_list(args.scenes) if args.scenes else None,
-        techniques=_csv_list(args.techniques) if args.techniques else None,
+        scenes=_names("--scenes", args.scenes),
+        techniques=_names("--techniques", args.techniques),
         overrides=runner.parse_overrides(args.set or []),
         timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
-    renderer = None
+    interrupt.raise_if_interrupted()
+    started = time.perf_counter()
     if args.executor == "dask":
         from .distributed import dask_renderer
 
-        renderer = dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
-                                 platform_name=args.platform)
-    elif args.scheduler:
-        raise ConfigError("--scheduler goes with --executor dask")
-    started = time.perf_counter()
-    code = runner.execute(plan, args.out, platform_name=args.platform,
-                          progress=not args.quiet, renderer=renderer,
-                          retime_noisy=args.retime_noisy)
+        # the cluster is up (or the scheduler answered) before anything is written to --out
+        with dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
+                           platform_name=args.platform) as renderer:
+            code = runner.execute(plan, args.out, platform_name=args.platform,
+                                  progress=not args.quiet, renderer=renderer,
+                                  retime_noisy=args.retime_noisy)
+    else:
+        code = runner.execute(plan, args.out, platform_name=args.platform,
+                              progress=not args.quiet, retime_noisy=args.retime_noisy)
     rows = [r for r in runner.results.read_rows(args.out)]
     ids = {r.run_id for r in plan.runs}
     mine = [r for r in rows if r["run_id"] in ids]
@@ -144,26 +166,39 @@ def cmd_run(args) -> int:
 
 def cmd_reference(args) -> int:
     import numpy as np
+    from pydantic import ValidationError
 
+    from .config import ConfigError, ReferenceSettings, check_resolution
     from .reference import compute_reference
     from .report import visibility_png
-    from .results import save_arrays
-    from .runner import reference_array_path
+    from .results import inside, save_arrays
+    from .runner import _exclusive, reference_array_path
     from .scene import load_scene
 
+    # the bounds of an experiment's reference samples and of a scene's resolution
     try:
-        square_number(args.samples)
-    except ValueError as e:
-        raise ConfigError(f"--samples: {e}") from None
+        ReferenceSettings(samples=args.samples)
+    except ValidationError as e:
+        message = e.errors()[0]["msg"].removeprefix("Value error, ")
+        raise ConfigError(f"--samples: {message}") from None
+    if args.resolution:
+        try:
+            check_resolution(args.resolution)
+        except ValueError as e:
+            raise ConfigError(f"--resolution: {e}") from None
     scene = load_scene(args.scene, args.scene_file)
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)
+    interrupt.raise_if_interrupted()
     ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
     out = Path(args.out)
-    path = out / reference_array_path(scene.name, scene.width, scene.height, args.samples, 0)
-    extra = {"direct": ref.direct} if ref.direct is not None else {}
-    save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
-    visibility_png(ref.visibility, ref.covered, path.with_suffix(".png"))
+    out.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out):
+        path = inside(out, reference_array_path(scene.name, scene.width, scene.height,
+                                                args.samples, 0))
+        extra = {"direct": ref.direct} if ref.direct is not None else {}
+        save_arrays(path, visibility=ref.visibility, covered=ref.covered, **extra)
+        visibility_png(ref.visibility, ref.covered, path.with_suffix(".png"))
     print(f"{path} ({scene.width}x{scene.height}, {args.samples} samples, {ref.variant}, "
           f"{'cached' if ref.cached else f'{ref.seconds:.2f} s'}; covered "
           f"{np.mean(ref.covered):.1%}, lit {np.mean(ref.visibility[ref.covered]):.1%})")
@@ -214,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="serial (this process) or dask (a Dask cluster; the client writes)")
     q.add_argument("--scheduler", metavar="ADDRESS",
                    help="with --executor dask: an existing scheduler (default: a LocalCluster)")
-    q.add_argument("--workers", type=int, default=2,
+    q.add_argument("--workers", type=int, default=2, metavar="N",
                    help="with --executor dask and no --scheduler: LocalCluster workers "
                         "(one thread each; default 2)")
     q.add_argument("--frames", metavar="N",
@@ -260,21 +295,60 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    if getattr(args, "platform", None):
-        os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
-    from .gl.context import BackendError
+    """The command line; returns the exit code. Run as the program (``argv`` None), an
+    interrupted command ends the process at once: the interpreter's own teardown with GL and
+    LLVM loaded takes a second or more, and everything on disk is consistent already."""
+    with interrupt.stop_on_signals():
+        try:
+            args = build_parser().parse_args(argv)
+            if getattr(args, "platform", None):
+                os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
+            with warnings.catch_warnings():
+                warnings.simplefilter("default")
+                return args.func(args)
+        except KeyboardInterrupt:
+            interrupt.announce()
+            if argv is None:
+                sys.stdout.flush()
+                os._exit(interrupt.EXIT_CODE)
+            return interrupt.EXIT_CODE
+        except Exception as e:
+            known = _known_failure(e)
+            if known is None:
+                import traceback
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
-            return args.func(args)
-    except (ConfigError, BackendError) as e:
-        print(f"shadowbench: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("shadowbench: interrupted; run the same command again to finish", file=sys.stderr)
-        return 130
+                print("shadowbench: internal error (a bug): please report it with the command "
+                      "and this traceback", file=sys.stderr)
+                traceback.print_exc()
+                return 1
+            code, message = known
+            print(f"shadowbench: {_printable(message)}", file=sys.stderr)
+            return code
+
+
+def _known_failure(e: Exception) -> tuple[int, str] | None:
+    """(exit code, one-line message) for an expected failure; None for a bug."""
+    from .config import ConfigError
+    from .gl.context import BackendError
+    from .reference import UntraceableSceneError
+    from .registry import RegistryError
+
+    if isinstance(e, (ConfigError, BackendError, RegistryError)):
+        return 2, str(e)
+    if isinstance(e, UntraceableSceneError):  # `reference` on a scene Mitsuba cannot trace
+        return 1, str(e)
+    if isinstance(e, OSError):
+        where = ": ".join(str(f) for f in (e.filename, e.filename2) if f is not None)
+        reason = e.strerror or str(e)
+        return (1 if e.errno in MACHINE_ERRNOS else 2), f"{where}: {reason}" if where else reason
+    if isinstance(e, MemoryError):
+        return 1, "out of memory; choose smaller resolutions, maps or fewer samples"
+    return None
+
+
+def _printable(message: str) -> str:
+    """One line: newlines and other control characters (from names in files) escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
 
 
 if __name__ == "__main__":

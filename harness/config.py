@@ -2,13 +2,30 @@
 
 Every problem is a :class:`ConfigError` whose one-line message names the file, the key path
 and (where the YAML has it) the line, e.g.
-``scenes.yaml:12: scenes.box_plane.camera.yfov: must be in (0, 180), got 190``.
-Unknown keys are errors, never silently ignored.
+``scenes.yaml:12: scenes.box_plane.camera.yfov: must be in [0.01, 180), got 190``.
+Unknown keys are errors, never silently ignored; so are a key given twice in one mapping
+(both lines named) and an alias that refers to itself.
+
+Every number must be finite, and within what the renderers can represent:
+
+- coordinates, sizes and distances at most ``MAX_COORDINATE`` (1e7) in magnitude: vertices are
+  float32, whose step is already one unit at 1e7;
+- sizes, radii, heights and scales > 0 (a zero scale flattens an object to nothing);
+- ``camera.far / camera.near`` at most ``MAX_DEPTH_RATIO`` (2^20): the camera pass writes a
+  24-bit depth buffer cleared to 1 and keeps fragments with depth < 1. A point at distance d
+  lies ``near (far - d) / ((far - near) d)`` below 1 in window depth, so with far/near = R every
+  point nearer than far/2 is at least 2^24 / R steps in front of the cleared depth: 16 at the
+  limit. At near 1e-7, far 1e9 a box 6 units away rounds to 1 and the GL view covers nothing;
+- a scene's triangles at most ``DEFAULT_TRIANGLE_BUDGET`` (1,000,000: about 0.8 GB and a minute
+  per shadow-volume run on 2 cores), or the experiment's ``triangle_budget``;
+- scene names (they name folders under ``--out``) from ``NAME_PATTERN``: letters, digits,
+  ``_``, ``-`` and ``.``, not starting with ``.``, at most 64 characters.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
@@ -17,7 +34,27 @@ import yaml
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
                       field_validator, model_validator)
 
-Vec3 = tuple[float, float, float]
+MAX_COORDINATE = 1e7
+MAX_DEPTH_RATIO = 2 ** 20
+DEFAULT_TRIANGLE_BUDGET = 1_000_000
+# degrees; no one benchmarks a narrower view, and toward 0 the projection's 1 / tan(fov / 2)
+# overflows float32
+MIN_FOV = 0.01
+MAX_YAML_NODES = 1_000_000  # after aliases are expanded: a few alias levels can mean billions
+NAME_PATTERN = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Size = Annotated[float, Field(gt=0, le=MAX_COORDINATE)]
+Vec3 = tuple[Coordinate, Coordinate, Coordinate]
+
+
+def _field_of_view(value: float) -> float:
+    if not MIN_FOV <= value < 180:
+        raise ValueError(f"must be in [{MIN_FOV}, 180), got {value}")
+    return value
+
+
+FieldOfView = Annotated[float, AfterValidator(_field_of_view)]
 
 
 def square_number(value: int) -> int:
@@ -34,8 +71,17 @@ class ConfigError(Exception):
     """Bad input: the message is one line naming file, key path and, where known, line."""
 
 
+def check_name(kind: str, name: str) -> str:
+    """A scene or technique name becomes a folder and file name under ``--out``: only
+    ``NAME_PATTERN`` names, so none can climb out of it, hide, or carry markup."""
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise ValueError(f"{kind} name {name!r}: use letters, digits, '_', '-' and '.' (not "
+                         "first), at most 64 characters")
+    return name
+
+
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def _norm(v) -> float:
@@ -46,28 +92,18 @@ class Camera(Strict):
     position: Vec3
     target: Vec3
     up: Vec3 = (0.0, 0.0, 1.0)
-    yfov: float = 60.0
-    near: float = 0.1
-    far: float = 100.0
-
-    @field_validator("yfov")
-    @classmethod
-    def _fov(cls, v):
-        if not 0 < v < 180:
-            raise ValueError(f"must be in (0, 180), got {v}")
-        return v
-
-    @field_validator("near")
-    @classmethod
-    def _near(cls, v):
-        if v <= 0:
-            raise ValueError(f"must be > 0, got {v}")
-        return v
+    yfov: FieldOfView = 60.0
+    near: Size = 0.1
+    far: Size = 100.0
 
     @model_validator(mode="after")
     def _geometry(self):
         if self.far <= self.near:
             raise ValueError(f"far: must be greater than near ({self.near}), got {self.far}")
+        if self.far / self.near > MAX_DEPTH_RATIO:
+            raise ValueError(f"far: far / near is {self.far / self.near:.3g}; a 24-bit depth "
+                             f"buffer resolves at most {MAX_DEPTH_RATIO} (2^20): raise near or "
+                             "lower far")
         view = np.subtract(self.target, self.position)
         if _norm(view) == 0:
             raise ValueError("target: equals position")
@@ -94,14 +130,7 @@ class SpotLight(Strict):
     type: Literal["spot"]
     position: Vec3
     target: Vec3
-    fov: float = 60.0  # full cone angle in degrees
-
-    @field_validator("fov")
-    @classmethod
-    def _fov(cls, v):
-        if not 0 < v < 180:
-            raise ValueError(f"must be in (0, 180), got {v}")
-        return v
+    fov: FieldOfView = 60.0  # full cone angle in degrees
 
     @model_validator(mode="after")
     def _aim(self):
@@ -130,65 +159,65 @@ class Array(Strict):
 class Placed(Strict):
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
-    scale: Union[float, Vec3] = 1.0
+    scale: Union[Size, tuple[Size, Size, Size]] = 1.0
     array: Array | None = None
     albedo: float = Field(0.8, ge=0, le=1)
 
-
-def _positive(name: str, values):
-    if any(v <= 0 for v in np.atleast_1d(values)):
-        raise ValueError(f"{name} must be > 0, got {values}")
-    return values
+    def triangles(self) -> int:
+        """Triangles of one copy (trimesh's construction of the shape; at most, for a lathe)."""
+        raise NotImplementedError
 
 
 class Plane(Placed):
     shape: Literal["plane"]
-    size: tuple[float, float] = (10.0, 10.0)
-    _v = field_validator("size")(lambda cls, v: _positive("size", v))
+    size: tuple[Size, Size] = (10.0, 10.0)
+
+    def triangles(self) -> int:
+        return 2
 
 
 class Box(Placed):
     shape: Literal["box"]
-    size: Vec3 = (1.0, 1.0, 1.0)
-    _v = field_validator("size")(lambda cls, v: _positive("size", v))
+    size: tuple[Size, Size, Size] = (1.0, 1.0, 1.0)
+
+    def triangles(self) -> int:
+        return 12
 
 
 class Sphere(Placed):
     shape: Literal["sphere"]
-    radius: float = 1.0
+    radius: Size = 1.0
     subdivisions: int = Field(3, ge=1, le=5)
-    _v = field_validator("radius")(lambda cls, v: _positive("radius", v))
+
+    def triangles(self) -> int:
+        return 20 * 4 ** self.subdivisions
 
 
 class Cylinder(Placed):
     shape: Literal["cylinder"]
-    radius: float = 0.5
-    height: float = 1.0
+    radius: Size = 0.5
+    height: Size = 1.0
     sections: int = Field(32, ge=3, le=256)
 
-    @model_validator(mode="after")
-    def _dims(self):
-        _positive("radius and height", (self.radius, self.height))
-        return self
+    def triangles(self) -> int:
+        return 4 * self.sections
 
 
 class Capsule(Placed):
     shape: Literal["capsule"]
-    radius: float = 0.25
-    height: float = 1.0  # between the centres of the two caps
+    radius: Size = 0.25
+    height: Size = 1.0  # between the centres of the two caps
     sections: int = Field(16, ge=3, le=128)
 
-    @model_validator(mode="after")
-    def _dims(self):
-        _positive("radius and height", (self.radius, self.height))
-        return self
+    def triangles(self) -> int:
+        return 2 * (self.sections + self.sections % 2) ** 2  # trimesh rounds odd counts up
 
 
 class Lathe(Placed):
     """A solid of revolution about +z from a profile of (radius, z) points, bottom to top."""
 
     shape: Literal["lathe"]
-    profile: list[tuple[float, float]]
+    profile: list[tuple[Annotated[float, Field(ge=0, le=MAX_COORDINATE)], Coordinate]]
     sections: int = Field(24, ge=3, le=256)
 
     @field_validator("profile")
@@ -196,9 +225,12 @@ class Lathe(Placed):
     def _profile(cls, v):
         if len(v) < 2:
             raise ValueError("needs at least two (radius, z) points")
-        if any(r < 0 for r, _ in v):
-            raise ValueError("radii must be >= 0")
+        if not any(r > 0 for r, _ in v):
+            raise ValueError("needs a radius > 0 (with every radius 0 it is a line, no surface)")
         return v
+
+    def triangles(self) -> int:
+        return 2 * self.sections * (len(self.profile) - 1)
 
 
 class MeshFile(Placed):
@@ -211,6 +243,13 @@ SceneObject = Annotated[
 ]
 
 
+def check_resolution(size):
+    """An image size (width, height), each in [16, 8192]."""
+    if not all(16 <= x <= 8192 for x in size):
+        raise ValueError(f"width and height must be in [16, 8192], got {list(size)}")
+    return size
+
+
 class Scene(Strict):
     description: str | None = None  # one sentence: what the scene is for (shown, never hashed)
     resolution: tuple[int, int] = (512, 512)
@@ -220,12 +259,7 @@ class Scene(Strict):
     ambient: float = Field(0.1, ge=0, le=1)
     objects: list[SceneObject]
 
-    @field_validator("resolution")
-    @classmethod
-    def _res(cls, v):
-        if not all(16 <= x <= 8192 for x in v):
-            raise ValueError(f"width and height must be in [16, 8192], got {list(v)}")
-        return v
+    _res = field_validator("resolution")(lambda cls, v: check_resolution(v))
 
     @field_validator("effects")
     @classmethod
@@ -305,33 +339,94 @@ def format_validation_error(path: Path, err: ValidationError, root_node, prefix=
 
 
 def read_yaml(path: Path):
-    """Parse a YAML file; return (data, root node). Errors are ConfigErrors."""
+    """Parse a YAML file; return (data, root node). Errors are ConfigErrors: a file that is not
+    UTF-8 text, not YAML, repeats a key in one mapping, or expands past ``MAX_YAML_NODES``."""
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not a text file (byte {e.object[e.start]:#04x} at offset "
+                          f"{e.start} is not UTF-8)") from None
     except OSError as e:
         raise ConfigError(f"{path}: cannot read: {e.strerror}") from None
     try:
-        node = yaml.compose(text)
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        _check_nodes(path, node)
         data = yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         line = f":{mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}{line}: not valid YAML: {getattr(e, 'problem', e)}") from None
+        problem = " ".join(str(getattr(e, "problem", None) or e).split())
+        raise ConfigError(f"{path}{line}: not valid YAML: {problem}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not valid YAML: nested too deeply") from None
     return data, node
 
 
-def load_scenes(path: str | Path) -> dict[str, Scene]:
-    """Load and validate a scene file; mesh paths are resolved against the file's folder."""
+def _check_nodes(path: Path, root) -> None:
+    """Duplicate keys (YAML loaders keep the last silently), aliases that contain themselves,
+    and alias expansion past ``MAX_YAML_NODES`` (a few nested aliases can stand for billions of
+    nodes) are errors. Merge keys (``<<: *anchor``) may be overridden: that is their purpose."""
+    sizes: dict[int, int] = {}
+    open_nodes: set[int] = set()
+
+    def expanded(node) -> int:
+        if id(node) in sizes:
+            return sizes[id(node)]
+        if id(node) in open_nodes:
+            raise ConfigError(f"{path}:{node.start_mark.line + 1}: an alias refers to the node "
+                              "that contains it")
+        open_nodes.add(id(node))
+        total = 1
+        if isinstance(node, yaml.MappingNode):
+            first_line: dict[tuple, int] = {}
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.tag != "tag:yaml.org,2002:merge":
+                    line = key.start_mark.line + 1
+                    if (key.tag, key.value) in first_line:
+                        raise ConfigError(f"{path}:{line}: key {key.value!r} is given twice "
+                                          f"in one mapping, at lines "
+                                          f"{first_line[key.tag, key.value]} and {line}")
+                    first_line[key.tag, key.value] = line
+                total += expanded(key) + expanded(value)
+        elif isinstance(node, yaml.SequenceNode):
+            total += sum(expanded(child) for child in node.value)
+        open_nodes.discard(id(node))
+        sizes[id(node)] = total
+        if total > MAX_YAML_NODES:
+            raise ConfigError(f"{path}: its aliases expand to more than {MAX_YAML_NODES:,} "
+                              "values")
+        return total
+
+    if root is not None:
+        expanded(root)
+
+
+def load_scenes(path: str | Path, *,
+                triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET) -> dict[str, Scene]:
+    """Load and validate a scene file; mesh paths are resolved against the file's folder.
+    Each scene's triangles (all copies) must fit ``triangle_budget`` (None: no budget)."""
     path = Path(path)
     data, node = read_yaml(path)
+    if isinstance(data, dict) and isinstance(data.get("scenes"), dict):
+        for name in data["scenes"]:
+            try:
+                check_name("scene", name)
+            except ValueError as e:
+                raise key_error(path, node, ("scenes", name), str(e)) from None
     try:
         scene_file = SceneFile.model_validate(data)
     except ValidationError as e:
         raise ConfigError(format_validation_error(path, e, node)) from None
     for name, scene in scene_file.scenes.items():
+        total = 0
         for i, obj in enumerate(scene.objects):
-            if isinstance(obj, MeshFile):
-                _check_mesh(path, node, name, i, obj)
+            one = (_check_mesh(path, node, name, i, obj) if isinstance(obj, MeshFile)
+                   else obj.triangles())
+            total += one * math.prod(obj.array.count if obj.array else (1, 1, 1))
+        if triangle_budget is not None and total > triangle_budget:
+            raise key_error(path, node, ("scenes", name, "objects"),
+                            f"{total:,} triangles, more than the budget of {triangle_budget:,} "
+                            "(an experiment may raise it with triangle_budget:)")
     return scene_file.scenes
 
 
@@ -340,18 +435,42 @@ def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
     return p if p.is_absolute() else Path(scene_path).parent / p
 
 
-def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile):
+def load_mesh(mesh_path: Path):
+    """trimesh's mesh from a file; a ``ValueError`` naming what is wrong when it is not one."""
     import trimesh
 
+    from .interrupt import raise_if_interrupted
+
+    try:
+        mesh = trimesh.load(mesh_path, force="mesh")
+    except ModuleNotFoundError:
+        # trimesh's last resort for text it cannot decode as UTF-8 is an optional module
+        raise ValueError("not a mesh file trimesh can read (neither its binary format nor "
+                         "UTF-8 text)") from None
+    except Exception as e:  # trimesh raises many kinds for a bad file
+        raise ValueError(" ".join(f"{type(e).__name__}: {e}".split())[:300]) from None
+    finally:
+        raise_if_interrupted()  # trimesh catches BaseException in places, Ctrl-C included
+    faces = getattr(mesh, "faces", None)
+    if faces is None or len(faces) == 0:
+        raise ValueError("no triangles")
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    if not np.all(np.abs(vertices) <= MAX_COORDINATE):
+        raise ValueError(f"vertex coordinates must be finite and within +-{MAX_COORDINATE:g}")
+    return mesh
+
+
+def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile) -> int:
+    """The mesh file's triangle count; a ConfigError naming the key when it cannot be used."""
     loc = ("scenes", scene_name, "objects", index, "path")
     mesh_path = resolve_mesh_path(path, obj)
+    if mesh_path.is_dir():
+        raise key_error(path, node, loc, f"{mesh_path} is a folder, not a mesh file")
     if not mesh_path.is_file():
         raise key_error(path, node, loc, f"no such file: {mesh_path}")
     try:
-        mesh = trimesh.load(mesh_path, force="mesh")
-        if len(mesh.faces) == 0:
-            raise ValueError("no triangles")
-    except Exception as e:  # trimesh raises many kinds for a bad file
+        return len(load_mesh(mesh_path).faces)
+    except ValueError as e:
         raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: {e}") from None
 
 
@@ -365,6 +484,9 @@ class Grid(Strict):
     with ``set`` fixed; or, with ``curve``, the technique's quality curve from ``set`` (true:
     every declared knob and value; a mapping: those knobs, with these values), expanded by the
     planner, which knows the techniques' declarations."""
+
+    # a non-finite value is the technique's error (runner.validate_params), named there
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=True)
 
     product: dict[str, list[Scalar]] = {}
     zip: dict[str, list[Scalar]] = {}
@@ -421,6 +543,7 @@ class Experiment(Strict):
     # "curves": every registered technique along its declared quality curve
     techniques: Union[Literal["all", "curves"], dict[str, Union[Grid, list[Grid]]]]
     resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
+    triangle_budget: int = Field(DEFAULT_TRIANGLE_BUDGET, ge=1, le=100_000_000)
     frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
     warmup: int = Field(2, ge=0, le=1000)
     # the 95% interval of each median time: order statistics or bootstrap (harness.timing)

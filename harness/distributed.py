@@ -16,9 +16,11 @@ resource ``gl=1`` (``dask worker --resources gl=1``), which the tasks then ask f
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 from .config import ConfigError
+from .interrupt import deferred
 from .runner import Plan, RunSpec, record_run
 
 # Runs per task: interleaving needs several runs in one worker, spreading the sweep needs
@@ -45,23 +47,31 @@ def _frame_on_worker(scene, frames: int, warmup: int):
 
 def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
     """Runs of one scene and resolution on this worker, in interleaved rounds:
-    ([(row, its arrays or None), ...] in the order of ``specs``, the reference)."""
+    ([(row, its arrays or None), ...] in the order of ``specs``, the reference or None). A
+    scene whose reference or frame fails gives its runs error rows, as in the serial runner."""
     from distributed import get_worker
 
     from .gl.context import get_context
     from .reference import compute_reference
-    from .runner import run_group
+    from .runner import failed_scene_row, run_group
 
     first = specs[0]
     context = get_context(platform)
-    reference = compute_reference(scene, samples=first.samples, seed=first.ref_seed)
-    frame, scene_ms, frags_scene = _frame_on_worker(scene, first.frames, first.warmup)
-    done = {}
-    for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
-                                       context.renderer):
+    try:
+        reference = compute_reference(scene, samples=first.samples, seed=first.ref_seed)
+        frame, scene_ms, frags_scene = _frame_on_worker(scene, first.frames, first.warmup)
+    except Exception as e:  # Mitsuba or GL cannot take this scene: its runs fail
+        finished = [(failed_scene_row(spec, e), None) for spec in specs]
+        reference = None
+    else:
+        done = {}
+        for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
+                                           context.renderer):
+            done[spec.run_id] = (row, arrays)
+        finished = [done[spec.run_id] for spec in specs]
+    for row, _ in finished:
         row["worker"] = get_worker().address
-        done[spec.run_id] = (row, arrays)
-    return [done[spec.run_id] for spec in specs], reference
+    return finished, reference
 
 
 def tasks_of(pending: list[RunSpec]) -> list[list[RunSpec]]:
@@ -92,27 +102,41 @@ def _task_options(client) -> dict:
     return {}
 
 
+SCHEDULER_TIMEOUT_S = 5
+
+
+@contextmanager
 def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
                   platform_name: str | None = None):
-    """A renderer for :func:`harness.runner.execute` that sends each run to a Dask cluster:
-    the one at ``scheduler``, or a new LocalCluster of ``n_workers`` one-thread workers."""
+    """Within the block, a renderer for :func:`harness.runner.execute` that sends each run to a
+    Dask cluster: the one at ``scheduler``, or a new LocalCluster of ``n_workers`` one-thread
+    workers. The cluster is reached (or started) on entry, before the sweep writes anything,
+    and a scheduler that does not answer within ``SCHEDULER_TIMEOUT_S`` is a ConfigError."""
     try:
-        import distributed  # noqa: F401
+        from distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise ConfigError("--executor dask needs Dask: pip install 'shadowbench[dask]'") from None
 
-    def render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
-        from distributed import Client, LocalCluster, as_completed
-
-        cluster = None
+    cluster = client = None
+    try:
         if scheduler is None:
             env = {k: os.environ[k] for k in ("SHADOWBENCH_GL", "PYOPENGL_PLATFORM",
                                               "SHADOWBENCH_CACHE") if k in os.environ}
-            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, env=env)
-        client = Client(cluster or scheduler)
-        try:
-            options = _task_options(client)
+            with deferred():  # interrupted halfway, a cluster fails in its exit handler
+                # a free port: parallel clusters would each warn that the default one is taken
+                cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1,
+                                       processes=True, dashboard_address=":0", env=env)
+                client = Client(cluster)
+        else:
+            try:
+                client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+            except Exception as e:  # refused, timed out, a malformed address, ...
+                reason = " ".join(f"{type(e).__name__}: {e}".split())[:200]
+                raise ConfigError(f"--scheduler {scheduler}: no Dask scheduler answers there "
+                                  f"({reason})") from None
+        options = _task_options(client)
+
+        def render(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
             tasks = tasks_of(pending)
             futures = [client.submit(run_on_worker, specs,
                                      plan.scenes[specs[0].scene].with_resolution(
@@ -129,9 +153,10 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
                     bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
                                             f"{spec.technique} ({row['worker']})")
                     yield spec, row
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
 
-    return render
+        yield render
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,7 +1,8 @@
 """The results record (versioned), its CSV storage, and loading as a pandas DataFrame.
 
-``results.csv`` is only ever replaced whole (write a temporary file, fsync, rename), so a
-killed run leaves either the old or the new file, never a truncated one.
+``results.csv`` and the arrays are only ever replaced whole (write a temporary file, fsync,
+rename), so a killed run leaves either the old or the new file, never a truncated one. Paths
+under a results folder are resolved and kept inside it (:func:`inside`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import json
 import math
 import os
 from pathlib import Path
+
+from .config import ConfigError
 
 SCHEMA_VERSION = 1
 
@@ -38,19 +41,69 @@ COLUMNS: dict[str, type] = {
 RESULTS_FILE = "results.csv"
 
 
-def save_arrays(path: str | Path, **arrays) -> None:
-    """Write an .npz whole or not at all: a temporary file of its own (processes sharing a
-    folder never collide), then a rename."""
-    import tempfile
+TEMPORARY_SUFFIX = ".tmp"
 
+
+def replace_atomically(path: str | Path, write) -> None:
+    """Write ``path`` whole or not at all: ``write(binary_file)`` fills a temporary file of its
+    own beside it (processes sharing a folder never collide; the umask gives its mode, as for
+    any file), which is synced and renamed over ``path``. The temporary file is removed when
+    writing fails; a killed writer leaves it for :func:`remove_temporaries`. An OSError names
+    ``path`` (a full disk fails in a write, which knows no file name)."""
+    import secrets
+
+    path = Path(path)
+    while True:
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}{TEMPORARY_SUFFIX}")
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            break
+        except FileExistsError:
+            continue
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException as e:
+        tmp.unlink(missing_ok=True)
+        if isinstance(e, OSError) and e.filename is None:
+            raise OSError(e.errno, e.strerror, str(path)) from e
+        raise
+
+
+def remove_temporaries(out_dir: str | Path, names: tuple[str, ...]) -> int:
+    """Remove what killed writers left in a results folder: the temporary files of the files
+    ``names`` at its top and of the arrays under ``arrays/``, named as this version or older
+    ones name them; the number removed. Only while no writer runs (under the folder's lock)."""
+    out_dir = Path(out_dir)
+    stale = [p for name in names for p in out_dir.glob(f".{name}*{TEMPORARY_SUFFIX}")]
+    stale += [p for pattern in (f".*.npz.*{TEMPORARY_SUFFIX}", "*.tmp.npz")
+              for p in (out_dir / "arrays").rglob(pattern)]
+    for p in stale:
+        if p.is_file():
+            p.unlink()
+    return len(stale)
+
+
+def save_arrays(path: str | Path, **arrays) -> None:
+    """Write an .npz whole or not at all (:func:`replace_atomically`)."""
     import numpy as np
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp.npz")
-    with os.fdopen(fd, "wb") as f:
-        np.savez_compressed(f, **arrays)
-    os.replace(tmp, path)
+    replace_atomically(path, lambda f: np.savez_compressed(f, **arrays))
+
+
+def inside(out_dir: str | Path, relative: str | Path) -> Path:
+    """``out_dir / relative`` resolved; a ConfigError when it leads outside ``out_dir`` (an
+    absolute path, ``..``, or a link out). Every path under ``--out`` goes through here."""
+    root = Path(out_dir).resolve()
+    path = (root / relative).resolve()
+    if not path.is_relative_to(root):
+        raise ConfigError(f"{out_dir}: {str(relative)!r} leads outside this folder")
+    return path
 
 
 def _cell(value) -> str:
@@ -63,28 +116,49 @@ def _cell(value) -> str:
     return str(value)
 
 
+# results.csv without these columns is not ours: refuse to append to it or report on it
+OWN_COLUMNS = ("run_id", "scene", "technique", "params", "status")
+
+
 def read_rows(out_dir: str | Path) -> list[dict[str, str]]:
+    """The rows of DIR/results.csv (none when it is missing or empty); a ConfigError when the
+    file is not a shadowbench results file."""
     path = Path(out_dir) / RESULTS_FILE
     if not path.is_file():
         return []
-    with path.open(newline="") as f:
-        return list(csv.DictReader(f))
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            rows = list(reader)
+            columns = reader.fieldnames
+    except (UnicodeDecodeError, csv.Error) as e:
+        raise _not_ours(path, " ".join(str(e).split())[:120]) from None
+    if columns is None:
+        return []
+    missing = [c for c in OWN_COLUMNS if c not in columns]
+    if missing:
+        raise _not_ours(path, f"no {', '.join(missing)} column")
+    return rows
+
+
+def _not_ours(path: Path, reason: str) -> ConfigError:
+    return ConfigError(f"{path}: not a shadowbench results file ({reason}); use another folder "
+                       "or move the file away")
 
 
 def write_rows(out_dir: str | Path, rows: list[dict]) -> None:
     """Replace results.csv atomically with ``rows`` (known columns first, extras sorted)."""
-    out_dir = Path(out_dir)
+    import io
+
     extras = sorted({k for r in rows for k in r} - set(COLUMNS))
     fields = list(COLUMNS) + extras
-    tmp = out_dir / f".{RESULTS_FILE}.tmp"
-    with tmp.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=fields)
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: _cell(row.get(k)) for k in fields})
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, out_dir / RESULTS_FILE)
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=fields)
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: _cell(row.get(k)) for k in fields})
+    replace_atomically(Path(out_dir) / RESULTS_FILE,
+                       lambda f: f.write(text.getvalue().encode("utf-8")))
 
 
 def record_row(out_dir: str | Path, row: dict) -> None:
@@ -98,6 +172,44 @@ def done_ids(out_dir: str | Path) -> set[str]:
     return {r["run_id"] for r in read_rows(out_dir) if r["status"] in ("ok", "skipped")}
 
 
+def readable_npz(path: Path) -> bool:
+    """Whether an .npz opens (its zip directory, at the end, survives no truncation)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            return bool(z.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def mark_damaged_runs(out_dir: str | Path) -> list[dict]:
+    """Rows whose stored arrays are missing, unreadable or outside DIR become failed runs
+    (status ``error``, the error naming the file), so the next run renders them again; the
+    rows marked."""
+    rows = read_rows(out_dir)
+    damaged = []
+    for row in rows:
+        if row["status"] != "ok":
+            continue
+        for column in ("array", "reference_array"):
+            name = row.get(column) or ""
+            if not name:
+                continue
+            try:
+                readable = readable_npz(inside(out_dir, name))
+            except ConfigError:
+                readable = False
+            if not readable:
+                row.update(status="error", error=f"stored array {name} is missing or damaged; "
+                                                 "the next run renders it again")
+                damaged.append(row)
+                break
+    if damaged:
+        write_rows(out_dir, rows)
+    return damaged
+
+
 def load(out_dir: str | Path):
     """Results of a run directory as a DataFrame: known columns typed, ``params`` parsed."""
     import pandas as pd
@@ -105,6 +217,8 @@ def load(out_dir: str | Path):
     path = Path(out_dir) / RESULTS_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no results here (run `shadowbench run --out {out_dir}`)")
+    if not read_rows(out_dir):
+        raise ConfigError(f"{path}: no results in it yet")
     df = pd.read_csv(path, dtype=str, keep_default_na=False)
     for name in df.columns:
         kind = COLUMNS.get(name)
@@ -114,7 +228,10 @@ def load(out_dir: str | Path):
                 df[name] = df[name].astype("int64")
             elif kind is float:  # "8388608" parses as an integer; the column is still float
                 df[name] = df[name].astype("float64")
-    df["params"] = df["params"].map(lambda s: json.loads(s) if s else {})
+    try:
+        df["params"] = df["params"].map(lambda s: json.loads(s) if s else {})
+    except ValueError as e:
+        raise _not_ours(path, f"a params cell is not JSON: {e}") from None
     return df
 
 

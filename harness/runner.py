@@ -9,8 +9,10 @@ same arguments finishes the rest without duplicates.
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import hashlib
 import json
+import math
 import os
 import platform
 import subprocess
@@ -80,7 +82,12 @@ def parse_overrides(values: list[str]) -> dict[str, dict]:
         technique, dot, param = key.partition(".")
         if not sep or not dot or not technique or not param:
             raise cfg.ConfigError(f"--set {item}: expected technique.param=value, e.g. pcf.k=16")
-        out.setdefault(technique, {})[param] = yaml.safe_load(raw)
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError as e:
+            problem = " ".join(str(getattr(e, "problem", None) or e).split())
+            raise cfg.ConfigError(f"--set {item}: the value is not valid YAML: {problem}") from None
+        out.setdefault(technique, {})[param] = value
     return out
 
 
@@ -88,7 +95,7 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
     """Validate against the technique's Params; errors name the technique and allowed names."""
     cls = registry.get(technique)
     try:
-        return cls.Params(**values).model_dump(mode="json")
+        params = cls.Params(**values)
     except ValidationError as e:
         first = e.errors()[0]
         name = ".".join(str(p) for p in first["loc"]) or "(parameters)"
@@ -98,6 +105,11 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
         else:
             msg = f"{technique}.{name}: {first['msg'].removeprefix('Value error, ')}"
         raise cfg.ConfigError(f"{where}: {msg}") from None
+    for name, value in params.model_dump().items():  # "1e999" and .inf validate as float inf
+        if isinstance(value, float) and not math.isfinite(value):
+            raise cfg.ConfigError(f"{where}: {technique}.{name}: must be a finite number, "
+                                  f"got {values.get(name, value)!r}")
+    return params.model_dump(mode="json")
 
 
 def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str] | None,
@@ -113,12 +125,12 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         if exp.scene_file:
             scene_file = str(exp_path.parent / exp.scene_file)
         exp_text = exp_path.read_text()
-    all_scenes = cfg.load_scenes(scene_file)
     registered = registry.techniques()
     if not experiment_path:
         exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
         node, exp_path, exp_text = None, Path("(command line)"), ""
     exp = cfg.with_timing(exp, **(timing or {}))
+    all_scenes = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget)
 
     wanted_scenes = list(all_scenes) if exp.scenes == "all" else list(exp.scenes)
     for i, name in enumerate(wanted_scenes):
@@ -152,6 +164,11 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                 raise cfg.ConfigError(f"--techniques: unknown technique {name!r}; registered: "
                                       f"{', '.join(registered)}")
         grids = {name: grids.get(name, [cfg.Grid()]) for name in techniques}
+    for name in grids:
+        try:
+            cfg.check_name("technique", name)
+        except ValueError as e:  # a plugin's entry point: its name becomes file names
+            raise cfg.ConfigError(f"entry point {registry.GROUP}: {e}") from None
     for name in overrides:
         if name not in grids:
             raise cfg.ConfigError(f"--set: technique {name!r} is not in this run "
@@ -266,20 +283,48 @@ MANIFEST_FILE = "manifest.json"
 
 
 def read_manifest(out_dir: Path) -> dict:
+    """DIR/manifest.json ({} when missing or empty); a ConfigError when it is not ours."""
+    path = Path(out_dir) / MANIFEST_FILE
     try:
-        return json.loads((Path(out_dir) / MANIFEST_FILE).read_text())
-    except (OSError, ValueError):
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
         return {}
+    except UnicodeDecodeError:
+        raise _not_a_manifest(path) from None
+    if not text.strip():
+        return {}  # written, then lost in a crash before it reached the disk: rewritten now
+    try:
+        manifest = json.loads(text)
+    except ValueError:
+        raise _not_a_manifest(path) from None
+    invocations = manifest.get("invocations", []) if isinstance(manifest, dict) else None
+    if not isinstance(invocations, list) or not all(isinstance(i, dict) for i in invocations):
+        raise _not_a_manifest(path)
+    return manifest
+
+
+def _not_a_manifest(path: Path) -> cfg.ConfigError:
+    return cfg.ConfigError(f"{path}: not a shadowbench manifest; use another folder or move the "
+                           "file away")
+
+
+# Kept free while a sweep runs, so that its manifest can still say how it ended on a full disk.
+SPACE_RESERVE = ".space-reserve"
+SPACE_RESERVE_BYTES = 1 << 16
 
 
 def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
     """Record what produced DIR. ``started`` is the first invocation of this experiment into
     DIR, ``finished`` the end of the invocation that completed it (None until one does);
-    ``invocations`` lists every start with how many runs it rendered and how it ended."""
+    ``invocations`` lists every start with how many runs it rendered and how it ended (one
+    still ``running`` in the manifest when another starts was killed: ``interrupted``).
+    When the disk is full, the space reserve is given up to write it."""
     previous = read_manifest(out_dir)
     same = previous.get("experiment_hash") == plan.experiment_hash
-    invocations = [i for i in (previous.get("invocations", []) if same else [])
-                   if i.get("started") != session["started"]] + [session]
+    earlier = [dict(i, status="interrupted") if i.get("status") == "running" else i
+               for i in (previous.get("invocations", []) if same else [])
+               if i.get("id") != session["id"]]
+    invocations = earlier + [session]
     complete = session["status"] == "complete"
     counters_missing = pass_measure.pipeline_statistics_missing()
     manifest = {
@@ -314,9 +359,15 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "status": session["status"],
         "invocations": invocations,
     }
-    tmp = out_dir / f".{MANIFEST_FILE}.tmp"
-    tmp.write_text(json.dumps(manifest, indent=2))
-    os.replace(tmp, out_dir / MANIFEST_FILE)
+    text = json.dumps(manifest, indent=2).encode()
+    try:
+        results.replace_atomically(out_dir / MANIFEST_FILE, lambda f: f.write(text))
+    except OSError as e:
+        reserve = out_dir / SPACE_RESERVE
+        if e.errno != errno.ENOSPC or not reserve.is_file():
+            raise
+        reserve.unlink()
+        results.replace_atomically(out_dir / MANIFEST_FILE, lambda f: f.write(text))
 
 
 def _now() -> str:
@@ -325,6 +376,20 @@ def _now() -> str:
 
 def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {' '.join(str(e).split())}"[:500]
+
+
+def _run_columns(spec: RunSpec) -> dict:
+    return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
+            "technique": spec.technique, "params": spec.params_json, "width": spec.width,
+            "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
+            "code_version": spec.code_version, "ref_samples": spec.samples}
+
+
+def failed_scene_row(spec: RunSpec, error: Exception) -> dict:
+    """The row of a run whose scene could not be prepared (its reference or its frame failed):
+    the scene's failure is its runs' error rows, not the end of the sweep."""
+    return {**_run_columns(spec), "status": "error",
+            "error": f"scene {spec.scene} {spec.width}x{spec.height}: {_one_line(error)}"}
 
 
 # Runs of one scene and resolution are measured in interleaved rounds (each round renders one
@@ -474,12 +539,8 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
 
 def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
                    renderer: str) -> dict:
-    return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
-            "technique": spec.technique, "params": spec.params_json, "width": spec.width,
-            "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
-            "scene_ms": scene_ms, "frags_scene": frags_scene, "renderer": renderer,
-            "code_version": spec.code_version, "ref_samples": spec.samples,
-            "ref_seconds": reference.seconds}
+    return {**_run_columns(spec), "scene_ms": scene_ms, "frags_scene": frags_scene,
+            "renderer": renderer, "ref_seconds": reference.seconds}
 
 
 def _timing_columns(timed: _Timed) -> dict:
@@ -613,21 +674,32 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
     at any moment leaves every finished run recorded once and no partial row; the next call
     with the same plan skips them. Arrays are written before their row: a kill between the two
-    leaves an unreferenced array that the rerun overwrites."""
+    leaves an unreferenced array that the rerun overwrites. The next call also heals what a
+    kill leaves: it removes temporary files, marks the killed invocation ``interrupted``, and
+    renders again the runs whose stored arrays are missing or damaged."""
     from tqdm import tqdm
+
+    from .interrupt import raise_if_interrupted
 
     renderer = renderer or render_serial
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with _exclusive(out_dir):
+        read_manifest(out_dir)  # foreign files stop the run before anything changes
+        results.read_rows(out_dir)
+        results.remove_temporaries(out_dir, (results.RESULTS_FILE, MANIFEST_FILE, SPACE_RESERVE))
+        results.mark_damaged_runs(out_dir)
         done = results.done_ids(out_dir)
         pending = [r for r in plan.runs if r.run_id not in done]  # failed ones are retried
         failed = 0
         from .gl.context import get_context
 
         context = get_context(platform_name)
-        session = {"started": _now(), "finished": None, "status": "running",
-                   "runs_pending": len(pending), "runs_rendered": 0}
+        # the id tells this invocation's entry from others started in the same second
+        session = {"id": os.urandom(4).hex(), "started": _now(), "finished": None,
+                   "status": "running", "runs_pending": len(pending), "runs_rendered": 0}
+        results.replace_atomically(out_dir / SPACE_RESERVE,
+                                   lambda f: f.write(bytes(SPACE_RESERVE_BYTES)))
         write_manifest(out_dir, plan, context, session)
         bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
                    disable=not progress, file=sys.stderr, dynamic_ncols=True,
@@ -636,6 +708,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
         cost_left, cost_done, clock = sum(map(_cost, pending)), 0.0, time.monotonic()
         try:
             for spec, row in renderer(plan, pending, out_dir, context, bar):
+                raise_if_interrupted()
                 session["runs_rendered"] += 1
                 failed += row["status"] == "error"
                 cost_done += _cost(spec)
@@ -665,6 +738,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
             bar.close()
             session["finished"] = _now()
             write_manifest(out_dir, plan, context, session)
+            (out_dir / SPACE_RESERVE).unlink(missing_ok=True)
     return 1 if failed else 0
 
 
@@ -673,16 +747,21 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
     """Store one finished run: the scene's reference arrays (once), its arrays, then the row.
 
     Arrays are written before their row: a kill between the two leaves an unreferenced array
-    that the rerun overwrites. Every executor records through here, the client alone."""
-    ref_path = out_dir / reference_array_path(spec.scene, spec.width, spec.height, spec.samples,
-                                              spec.ref_seed)
-    row["reference_array"] = str(ref_path.relative_to(out_dir))
-    if not ref_path.is_file():
-        results.save_arrays(ref_path, visibility=reference.visibility, covered=reference.covered,
-                     **({"direct": reference.direct} if reference.direct is not None else {}))
+    that the rerun overwrites. Every executor records through here, the client alone. A run
+    whose scene failed has no reference (None) and no arrays."""
+    if reference is not None:
+        ref_name = reference_array_path(spec.scene, spec.width, spec.height, spec.samples,
+                                        spec.ref_seed)
+        ref_path = results.inside(out_dir, ref_name)
+        row["reference_array"] = str(ref_name)
+        if not results.readable_npz(ref_path):
+            results.save_arrays(ref_path, visibility=reference.visibility,
+                                covered=reference.covered,
+                                **({"direct": reference.direct} if reference.direct is not None
+                                   else {}))
     if arrays is not None:
-        array = ref_path.relative_to(out_dir).with_name(f"{spec.technique}-{spec.run_id}.npz")
-        results.save_arrays(out_dir / array, **arrays)
+        array = ref_name.with_name(f"{spec.technique}-{spec.run_id}.npz")
+        results.save_arrays(results.inside(out_dir, array), **arrays)
         row["array"] = str(array)
     row["finished_at"] = _now()
     results.record_row(out_dir, row)
@@ -691,7 +770,8 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
 def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
     """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
     shared, its runs measured in interleaved rounds: :func:`run_group`), appending each row
-    as it finishes; yields (spec, row) for each."""
+    as it finishes; yields (spec, row) for each. A scene whose reference or frame fails gives
+    its runs error rows, and the sweep goes on."""
     from .reference import compute_reference
     from .technique import Frame
 
@@ -702,11 +782,21 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
     for (scene_name, width, height, samples, ref_seed), specs in groups.items():
         scene = plan.scenes[scene_name].with_resolution(width, height)
         bar.set_description_str(f"{scene_name} {width}x{height}: reference")
-        reference = compute_reference(scene, samples=samples, seed=ref_seed)
-        frame = Frame(scene)
+        frame = None
         try:
+            reference = compute_reference(scene, samples=samples, seed=ref_seed)
+            frame = Frame(scene)
             frames, warmup = specs[0].frames, specs[0].warmup
             scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        except Exception as e:  # Mitsuba or GL cannot take this scene: its runs fail
+            if frame is not None:
+                frame.release()
+            for spec in specs:
+                row = failed_scene_row(spec, e)
+                record_run(out_dir, spec, row, None, None)
+                yield spec, row
+            continue
+        try:
             bar.set_description_str(f"{scene_name} {width}x{height}: {len(specs)} runs in rounds")
             for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
                                                context.renderer):

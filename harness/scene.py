@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from . import config as cfg
+from .interrupt import raise_if_interrupted
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,9 @@ class MeshPart:
 
     @cached_property
     def is_closed(self) -> bool:
-        return trimesh.Trimesh(self.vertices, self.faces, process=False).is_watertight
+        closed = trimesh.Trimesh(self.vertices, self.faces, process=False).is_watertight
+        raise_if_interrupted()
+        return closed
 
 
 @dataclass(frozen=True)
@@ -146,15 +149,16 @@ def _base_mesh(obj, source: Path | None) -> trimesh.Trimesh:
         case cfg.Lathe():
             return c.revolve(np.asarray(obj.profile, dtype=float), sections=obj.sections)
         case cfg.MeshFile():
-            path = cfg.resolve_mesh_path(source or Path("."), obj)
-            return trimesh.load(path, force="mesh")
+            return cfg.load_mesh(cfg.resolve_mesh_path(source or Path("."), obj))
     raise TypeError(f"unknown object {obj!r}")
 
 
 def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
     parts = []
     for index, obj in enumerate(scene.objects):
+        raise_if_interrupted()  # trimesh catches BaseException, Ctrl-C included
         base = _base_mesh(obj, source)
+        raise_if_interrupted()
         base.apply_transform(_transform(obj))
         vertices = np.asarray(base.vertices, dtype=np.float64)
         faces = np.asarray(base.faces, dtype=np.int32)

@@ -17,13 +17,16 @@
 // feet kept 0.17 % of the pixels in acne at map 4096 (256 x 256 image), 0.07 % with this one.
 // The plane comes from the G-buffer's flat normal, not from screen-space derivatives, so it
 // is exact where a pixel quad straddles two surfaces. `bias` stays in scene units (depth
-// precision, the papers' constant Bias).
+// precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
+// rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
+// matters far from the origin.
 uniform sampler2D shadow_map;
 uniform mat4 light_view;
 uniform mat4 light_proj;
 uniform float map_res;
 uniform bool light_is_ortho;
 uniform float slope_bias;
+uniform float depth_precision;  // float32 rounding of depths this far from the origin
 
 // Receiver planes closer to edge-on than this (tan of the angle between normal and light,
 // measured per map texel) take this slope: the bias stays finite.
@@ -108,7 +111,7 @@ bool map_cell(vec2 texel, out ivec2 cell) {
 float depth_test(vec2 texel, float depth, float bias) {
     ivec2 t;
     if (!map_cell(texel, t)) return 1.0;
-    return depth - bias > texelFetch(shadow_map, t, 0).r ? 0.0 : 1.0;
+    return depth - bias - depth_precision > texelFetch(shadow_map, t, 0).r ? 0.0 : 1.0;
 }
 
 // Williams' test of the receiver against the texel holding map position `at`, with the
