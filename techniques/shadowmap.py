@@ -95,7 +95,7 @@ def camera_rays(frame: Frame) -> dict:
 class MapShading:
     """Two passes: the light depth map, then one full-screen pass writing V from it with
     ``fragment``, a shader beside this module built on ``shadow_map.glsl`` (``defines`` go to
-    it)."""
+    it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded)."""
 
     def __init__(self, frame: Frame, res: int, fragment: str, **defines):
         self.map = LightDepthMap(frame, res)
@@ -116,7 +116,7 @@ class MapShading:
             unit = frame.bind_gbuffer(self.shading)
             self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame, texture),
                              **uniforms)
-            frame.draw_fullscreen()
+            frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
 
     def release(self) -> None:
         self.map.release()

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 from OpenGL import GL, images
 
@@ -19,22 +17,6 @@ FORMATS = {
     GL.GL_DEPTH24_STENCIL8: (GL.GL_DEPTH_STENCIL, GL.GL_UNSIGNED_INT_24_8, 1, 4),
     GL.GL_DEPTH_COMPONENT32F: (GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, 1, 4),
 }
-
-
-# llvmpipe clears a target with a plain store loop per tile (about 3 GB/s on the 2-core test
-# machine), while a copy between textures is a memcpy: a 2048^2 R32F map with its depth took
-# 10 ms of CPU to clear and 5 ms to copy from a cleared strip of rows. A hardware GPU clears
-# almost for free and copies at memory speed, so there clears stay clears.
-SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")
-# rows of a strip hold at most this many bytes per attachment: small enough to stay in cache
-CLEAR_STRIP_BYTES = 1 << 19
-
-
-@functools.cache
-def clears_by_copy() -> bool:
-    """Whether :meth:`Framebuffer.clear` copies from a cleared strip (software renderers)."""
-    renderer = GL.glGetString(GL.GL_RENDERER).decode().lower()
-    return any(name in renderer for name in SOFTWARE_RENDERERS)
 
 
 class Texture:
@@ -53,6 +35,22 @@ class Texture:
     @property
     def nbytes(self) -> int:
         return self.width * self.height * self.texel_bytes
+
+    # glClearTexImage rather than a framebuffer clear: llvmpipe clears a render target with a
+    # store loop per tile (about 3 GB/s on the 2-core test machine) and a texture near memset
+    # speed; a 2048^2 R32F map with its depth took 11 ms of CPU the first way, 4 ms this way.
+    def clear(self, value) -> None:
+        """Set every texel of a colour texture to ``value``, RGBA or a scalar for all four."""
+        rgba = np.broadcast_to(np.asarray(value, np.float32), (4,)).copy()
+        GL.glClearTexImage(self.id, 0, GL.GL_RGBA, GL.GL_FLOAT, rgba)
+
+    def clear_depth_stencil(self, stencil: int) -> None:
+        """Set every texel of a depth+stencil texture to the far plane (depth 1) and
+        ``stencil``. Depth 1 only: other depths round here otherwise than in a framebuffer
+        clear."""
+        texel = np.array([np.float32(1.0).view(np.uint32), stencil], np.uint32)
+        GL.glClearTexImage(self.id, 0, GL.GL_DEPTH_STENCIL,
+                           GL.GL_FLOAT_32_UNSIGNED_INT_24_8_REV, texel)
 
     def bind(self, unit: int) -> int:
         GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
@@ -76,7 +74,6 @@ class Framebuffer:
             GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i,
                                       GL.GL_TEXTURE_2D, tex.id, 0)
         self.depth = Texture(width, height, GL.GL_DEPTH24_STENCIL8) if depth else None
-        self._strip: tuple[tuple, Framebuffer] | None = None  # (clear values, cleared strip)
         if self.depth:
             GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT,
                                       GL.GL_TEXTURE_2D, self.depth.id, 0)
@@ -97,48 +94,17 @@ class Framebuffer:
         GL.glViewport(0, 0, self.width, self.height)
         return self
 
-    def clear(self, *colors, depth: float = 1.0, stencil: int = 0) -> None:
-        """Clear each colour attachment to the given RGBA (or scalar) and depth/stencil, every
-        texel whatever the write masks, and bind the framebuffer. On a software renderer the
-        values come from a strip of rows cleared once (:func:`clears_by_copy`)."""
-        rgbas = [np.broadcast_to(np.asarray(v, np.float32), (4,)).copy() for v in colors]
-        if not clears_by_copy():
-            self._clear_attachments(rgbas, depth, stencil)
-            return
-        values = (tuple(tuple(v.tolist()) for v in rgbas), depth, stencil)
-        if self._strip is None or self._strip[0] != values:
-            self._release_strip()
-            texel_bytes = max(t.texel_bytes for t in self.colors + [self.depth] if t)
-            rows = max(1, min(self.height, CLEAR_STRIP_BYTES // (self.width * texel_bytes)))
-            strip = Framebuffer(self.width, rows, [t.internal_format for t in self.colors],
-                                depth=self.depth is not None)
-            strip._clear_attachments(rgbas, depth, stencil)
-            self._strip = values, strip
-        strip = self._strip[1]
-        pairs = list(zip(strip.colors, self.colors[:len(colors)]))
-        pairs += [(strip.depth, self.depth)] if self.depth else []
-        for y in range(0, self.height, strip.height):
-            rows = min(strip.height, self.height - y)
-            for source, target in pairs:
-                GL.glCopyImageSubData(source.id, GL.GL_TEXTURE_2D, 0, 0, 0, 0,
-                                      target.id, GL.GL_TEXTURE_2D, 0, 0, y, 0,
-                                      self.width, rows, 1)
+    def clear(self, *colors, stencil: int = 0) -> None:
+        """Clear each colour attachment to the given RGBA (or scalar), depth to the far plane
+        (1) and stencil, every texel whatever the write masks and scissor; then bind the
+        framebuffer with depth and stencil writes on."""
+        for texture, value in zip(self.colors, colors):
+            texture.clear(value)
         self.bind()
-
-    def _clear_attachments(self, rgbas: list[np.ndarray], depth: float, stencil: int) -> None:
-        self.bind()
-        GL.glColorMask(GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE, GL.GL_TRUE)
-        for i, rgba in enumerate(rgbas):
-            GL.glClearBufferfv(GL.GL_COLOR, i, rgba)
         if self.depth:
+            self.depth.clear_depth_stencil(stencil)
             GL.glDepthMask(GL.GL_TRUE)
             GL.glStencilMask(0xFF)
-            GL.glClearBufferfi(GL.GL_DEPTH_STENCIL, 0, depth, stencil)
-
-    def _release_strip(self) -> None:
-        if self._strip is not None:
-            self._strip[1].release()
-            self._strip = None
 
     def read(self, attachment: int = 0) -> np.ndarray:
         """Attachment as float32 (H, W, C) or (H, W), row 0 at the top of the image."""
@@ -163,7 +129,6 @@ class Framebuffer:
         return np.ascontiguousarray(a.reshape(self.height, self.width)[::-1])
 
     def release(self) -> None:
-        self._release_strip()
         for t in self.colors + ([self.depth] if self.depth else []):
             t.release()
         GL.glDeleteFramebuffers(1, [self.id])
