@@ -173,8 +173,9 @@ def test_gbuffer_normal_is_zero_where_no_surface(scene_at, gl_context):
     surface is and the drawn ones where one is, and sm's V does not depend on what the texture
     held before.
 
-    Catches: read() returning the texture as it is (the junk 7.0 shows where not covered), a
-    shader reading the normal without testing coverage."""
+    Catches: read() returning the texture as it is (the junk 7.0 shows where not covered); a
+    map shader reading the normal without testing coverage and drawn over every pixel (seen:
+    sm_shading.frag.glsl without its gbuffer_fetch test, covered_only off)."""
     from harness.technique import Frame
 
     frame = Frame(scene_at("castle", 64))
