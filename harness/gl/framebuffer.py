@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from OpenGL import GL, images
-
-# PyOpenGL 3.1.10 lacks the component count of two-channel reads (glReadPixels with GL_RG).
-images.COMPONENT_COUNTS.setdefault(GL.GL_RG, 2)
+from OpenGL import GL
+from OpenGL.raw.GL.VERSION.GL_1_0 import glReadPixels as read_pixels_into
 
 # internal format -> (format, type, channels, bytes per texel)
 FORMATS = {
@@ -112,21 +110,23 @@ class Framebuffer:
         fmt, typ, channels, _ = FORMATS[tex.internal_format]
         self.bind()
         GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + attachment)
-        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        dtype = np.float32 if typ == GL.GL_FLOAT else np.uint8
-        raw = GL.glReadPixels(0, 0, self.width, self.height, fmt, typ)
-        a = np.frombuffer(raw, dtype=dtype) if isinstance(raw, bytes) else np.asarray(raw, dtype)
-        a = a.reshape(self.height, self.width, channels)[::-1]
-        a = a.astype(np.float32) / 255.0 if dtype == np.uint8 else a
+        a = self._read_pixels(fmt, typ, np.float32 if typ == GL.GL_FLOAT else np.uint8,
+                              channels)
+        a = a.astype(np.float32) / 255.0 if a.dtype == np.uint8 else a
         return np.ascontiguousarray(a[..., 0] if channels == 1 else a)
 
     def read_stencil(self) -> np.ndarray:
         self.bind()
+        stencil = self._read_pixels(GL.GL_STENCIL_INDEX, GL.GL_UNSIGNED_BYTE, np.uint8, 1)
+        return np.ascontiguousarray(stencil[..., 0])
+
+    def _read_pixels(self, fmt, typ, dtype, channels: int) -> np.ndarray:
+        """(H, W, channels) of the bound read buffer, row 0 at the top (a view)."""
+        pixels = np.empty((self.height, self.width, channels), dtype)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        raw = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_STENCIL_INDEX,
-                              GL.GL_UNSIGNED_BYTE)
-        a = np.frombuffer(raw, np.uint8) if isinstance(raw, bytes) else np.asarray(raw, np.uint8)
-        return np.ascontiguousarray(a.reshape(self.height, self.width)[::-1])
+        # PyOpenGL's own glReadPixels wrapper costs 1.7 ms of a 0.1 ms read of 512^2 floats
+        read_pixels_into(0, 0, self.width, self.height, fmt, typ, pixels)
+        return pixels[::-1]
 
     def release(self) -> None:
         for t in self.colors + ([self.depth] if self.depth else []):
