@@ -1,7 +1,7 @@
 // Williams' test alone: the receiver against the one map texel holding it, with the constant
 // bias and the slope term of that texel (shadow_map.glsl). The same arithmetic as
 // pcf_samples.glsl with one grid sample, no jitter and a single bias, without its loop and
-// random numbers.
+// random numbers (tests/test_frame_speed.py holds them bit for bit equal): half the pass.
 #include "gbuffer_read.glsl"
 #include "shadow_map.glsl"
 
