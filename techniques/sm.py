@@ -6,7 +6,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from .shadowmap import FilteredShadowMap, Sampling
+from .shadowmap import MapShading
 
 
 class ShadowMap(Technique):
@@ -43,12 +43,11 @@ class ShadowMap(Technique):
         slope_bias: float = Field(1.0, ge=0)
 
     def prepare(self, frame: Frame) -> None:
-        self.passes = FilteredShadowMap(frame, self.params.res)
+        self.passes = MapShading(frame, self.params.res, "sm_shading.frag.glsl")
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
-        self.passes.render(frame, Sampling(bias_min=p.bias, bias_max=p.bias,
-                                           slope_bias=p.slope_bias))
+        self.passes.render(frame, p.slope_bias, bias=p.bias)
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
                             nonfinite=self.passes.map.nonfinite)
 
