@@ -7,7 +7,8 @@ pyrender's OffscreenRenderer with SHADOWS_DIRECTIONAL draws a 2048^2 directional
 the scene, and reads the colour back; our frame is the G-buffer pass plus the technique's
 passes, each timed as the harness times it (PassMeter: glFinish brackets, read-back of V
 excluded). Frames are interleaved, one of each per round, so that load from other processes
-falls on all of them alike; the ratios are per round (median, min, max). Beside the wall clock,
+falls on all of them alike; the ratios are per round: their median with a 95% interval of the
+median (order statistics, harness.timing.median_interval), min and max. Beside the wall clock,
 the CPU time of this process per frame (llvmpipe's threads included; our read-back of V
 included), which other processes disturb less.
 """
@@ -109,6 +110,7 @@ def main() -> None:
     from harness.gl.context import get_context
     from harness.scene import load_scene
     from harness.technique import Frame
+    from harness.timing import median_interval
 
     context = get_context()
     scene = load_scene(args.scene).with_resolution(args.size, args.size)
@@ -129,14 +131,16 @@ def main() -> None:
     get_context()
     print(f"{context.renderer}; {args.scene} {args.size}x{args.size}, map {args.res}^2, "
           f"{args.frames} interleaved frames; load average {load:.2f} -> {os.getloadavg()[0]:.2f}")
-    print(f"{'':22s}{'wall ms':>9s}{'vs pyrender':>13s}{'min':>6s}{'max':>6s}"
-          f"{'cpu ms':>9s}{'vs pyrender':>13s}{'min':>6s}{'max':>6s}")
+    print(f"{'':22s}{'wall ms':>9s}{'vs pyrender [95% of median]':>30s}{'min':>6s}{'max':>6s}"
+          f"{'cpu ms':>9s}{'vs pyrender [95% of median]':>30s}{'min':>6s}{'max':>6s}")
     for label, t in times.items():
         cells = ""
         for clock in (0, 1):
             ratios = [a[clock] / b[clock] for a, b in zip(t, times["pyrender"])]
+            ratio, low, high = median_interval(ratios)
             cells += (f"{statistics.median(x[clock] for x in t):9.2f}"
-                      f"{statistics.median(ratios):13.2f}{min(ratios):6.2f}{max(ratios):6.2f}")
+                      f"{ratio:14.3f} [{low:.3f}, {high:.3f}]"
+                      f"{min(ratios):6.2f}{max(ratios):6.2f}")
         name = label if label == "pyrender" else f"{label} (+G-buffer)"
         print(f"{name:22s}{cells}")
     for label, run in ours.items():

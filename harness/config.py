@@ -630,7 +630,8 @@ def with_timing(exp: Experiment, **options) -> Experiment:
 def load_experiment(path: str | Path) -> tuple[Experiment, object]:
     """Validate an experiment file; returns the model and the YAML root node (for lines).
 
-    A technique's grid may be empty or null (its defaults), one grid, or a list of grids."""
+    A technique's grid may be empty or null (its defaults), one grid (or curve), or a list of
+    them."""
     path = Path(path)
     data, node = read_yaml(path)
     if not isinstance(data, dict):

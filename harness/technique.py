@@ -69,8 +69,8 @@ class Technique:
     summary: ClassVar[str]
     paper: ClassVar[str]
     Params: ClassVar[type[TechniqueParams]]
-    # The quality knob(s) and the values worth trying, in the order a curve joins them:
-    # ``{parameter: (value, ...)}``. A curve walks one knob at a time from the defaults (see
+    # The quality knob(s) and the values worth trying, ``{parameter: (value, ...)}``: what
+    # ``techniques: curves`` runs, one knob at a time from the defaults (see
     # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
     quality_knobs: ClassVar[dict[str, tuple]] = {}
 
@@ -169,6 +169,7 @@ class Frame:
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
+        self.share_scene_depth(self.visibility_target)  # for draw_fullscreen(covered_only=True)
         self.timer = default_timer(GL.glGetString(GL.GL_RENDERER).decode())
         # why the driver cannot count pipeline statistics ('' where it can)
         self.counters_missing = pass_measure.pipeline_statistics_missing()
@@ -222,8 +223,24 @@ class Frame:
     def draw_scene(self) -> None:
         self.geometry.draw()
 
-    def draw_fullscreen(self) -> None:
+    def draw_fullscreen(self, covered_only: bool = False) -> None:
+        """The full-screen triangle. ``covered_only``, into the visibility target: only where
+        the G-buffer holds a surface. The triangle is tested at the far plane against the
+        scene's depth, so the renderer skips shading the other pixels (llvmpipe skips a 4x4
+        block no pixel of which passes), which keep V's clear value, lit. A shader drawn so
+        must give them V = 1 anyway: this saves time and never changes V."""
+        if not covered_only:
+            self.fullscreen_triangle.draw()
+            return
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthFunc(GL.GL_GREATER)  # depth 1 is the clear value: no surface there
+        GL.glDepthMask(GL.GL_FALSE)
+        GL.glDepthRange(1.0, 1.0)
         self.fullscreen_triangle.draw()
+        GL.glDepthRange(0.0, 1.0)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDisable(GL.GL_DEPTH_TEST)
 
     def bind_gbuffer(self, program: Program, first_unit: int = 0) -> int:
         """Bind the G-buffer textures for ``gbuffer_read.glsl``; returns the next free unit."""

@@ -108,15 +108,50 @@ def camera_rays(frame: Frame) -> dict:
                 camera_ray_dy=ray(0.0, 1.0) - base)
 
 
+class MapShading:
+    """Two passes: the light depth map, then one full-screen pass writing V from it with
+    ``fragment``, a shader beside this module built on ``shadow_map.glsl`` (``defines`` go to
+    it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded)."""
+
+    def __init__(self, frame: Frame, res: int, fragment: str, **defines):
+        self.map = LightDepthMap(frame, res)
+        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
+
+    def render(self, frame: Frame, slope_bias: float, **uniforms) -> None:
+        """Both passes; ``uniforms`` go to the shading shader."""
+        with frame.measure("shadow_map"):
+            self.map.render(frame)
+        self.shade(frame, slope_bias, **uniforms)
+
+    def shade(self, frame: Frame, slope_bias: float, texture: Texture | None = None,
+              **uniforms) -> None:
+        """The shading pass alone, on the map already rendered (or on ``texture``)."""
+        with frame.measure("shading"):
+            frame.begin_visibility()
+            self.shading.use()
+            unit = frame.bind_gbuffer(self.shading)
+            self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame, texture),
+                             **uniforms)
+            frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
+
+    def release(self) -> None:
+        self.map.release()
+        self.shading.release()
+
+
 class FilteredShadowMap:
-    """Two passes: the light depth map, then full-screen PCF shading into V.
+    """The map and a full-screen PCF shading pass (:class:`MapShading`) with the samples of a
+    :class:`Sampling`.
 
     The shading shader is ``pcf.frag.glsl`` unless ``fragment`` names another one built on
     ``pcf_samples.glsl`` (same samples, its own per-sample test; ``defines`` go to it)."""
 
     def __init__(self, frame: Frame, res: int, fragment: str = "pcf.frag.glsl", **defines):
-        self.map = LightDepthMap(frame, res)
-        self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
+        self.passes = MapShading(frame, res, fragment, **defines)
+
+    @property
+    def map(self) -> LightDepthMap:
+        return self.passes.map
 
     def update(self, frame: Frame) -> None:
         """Fit the map to the frame's light: an engine refits it every frame (timed)."""
@@ -124,27 +159,22 @@ class FilteredShadowMap:
             self.map.frustum = fit_light(frame.scene, self.map.res)
 
     def render(self, frame: Frame, sampling: Sampling) -> None:
-        with frame.measure("shadow_map"):
-            self.map.render(frame)
-        self.shade(frame, sampling)
+        self.passes.render(frame, sampling.slope_bias, **sampling_uniforms(frame, sampling))
 
     def shade(self, frame: Frame, sampling: Sampling, texture: Texture | None = None) -> None:
         """The shading pass alone, on the map already rendered (or on ``texture``)."""
-        s = sampling
-        with frame.measure("shading"):
-            frame.begin_visibility()
-            self.shading.use()
-            unit = frame.bind_gbuffer(self.shading)
-            self.shading.set(**self.map.lookup_uniforms(unit, s.slope_bias, frame, texture))
-            self.shading.set(**camera_rays(frame))
-            self.shading.set(grid_n=s.grid_n, footprint_region=s.footprint_region,
-                             res_factor=s.res_factor, min_size=s.min_size, spacing=s.spacing,
-                             bias_min=s.bias_min, bias_max=s.bias_max, jitter=s.jitter,
-                             window_low=np.full(2, float(s.window[0])),
-                             window_high=np.full(2, float(s.window[1])))
-            GL.glUniform1ui(self.shading.location("seed"), s.seed)
-            frame.draw_fullscreen()
+        self.passes.shade(frame, sampling.slope_bias, texture,
+                          **sampling_uniforms(frame, sampling))
 
     def release(self) -> None:
-        self.map.release()
-        self.shading.release()
+        self.passes.release()
+
+
+def sampling_uniforms(frame: Frame, sampling: Sampling) -> dict:
+    """The uniforms of pcf_samples.glsl for ``sampling`` in ``frame``."""
+    s = sampling
+    return dict(**camera_rays(frame), grid_n=s.grid_n, footprint_region=s.footprint_region,
+                res_factor=s.res_factor, min_size=s.min_size, spacing=s.spacing,
+                bias_min=s.bias_min, bias_max=s.bias_max, jitter=s.jitter,
+                window_low=np.full(2, float(s.window[0])),
+                window_high=np.full(2, float(s.window[1])), seed=np.uint32(s.seed))

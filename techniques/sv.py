@@ -103,9 +103,9 @@ class ShadowVolumes(Technique):
     paper = ("Crow 1977, Shadow algorithms for computer graphics; Roettger, Irion, Ertl 2002, "
              "Shadow volumes revisited")
     # quality knobs: buffer and method trade cost for robustness, mask_res accuracy for time
-    # (mask_res quarter and method nearclip join these when they exist)
-    quality_knobs = {"buffer": ("stencil", "alpha", "screen"), "method": ("zpass", "zfail"),
-                     "mask_res": ("half", "full")}
+    quality_knobs = {"buffer": ("stencil", "alpha", "screen"),
+                     "method": ("zpass", "nearclip", "zfail"),
+                     "mask_res": ("quarter", "half", "full")}
 
     class Params(TechniqueParams):
         buffer: Literal["stencil", "alpha", "screen"] = "stencil"

@@ -88,8 +88,8 @@ def test_bad_input_exits_2_with_one_line_naming_the_folder(tmp_path, make_result
     binary = tmp_path / "binary"
     binary.mkdir()
     (binary / "results.csv").write_bytes(b"\xff\xfe\x00\x81" * 50)
-    cases = {empty: "no results.csv", foreign: "not shadowbench results",
-             old: "results version [0]", other: "no run in common", binary: "cannot be read"}
+    cases = {empty: "no results.csv", foreign: "not a shadowbench results file",
+             old: "results version [0]", other: "no run in common", binary: "not a shadowbench results file"}
     for folder, why in cases.items():
         assert shadowbench(["compare", str(good), str(folder)]) == 2, folder
         err = capsys.readouterr().err.strip().splitlines()

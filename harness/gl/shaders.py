@@ -84,10 +84,15 @@ class Program:
         return self._locations[name]
 
     def set(self, **uniforms) -> "Program":
-        """Set uniforms on this (bound) program. Unused uniforms are ignored, as GL does."""
+        """Set uniforms on this (bound) program. Unused uniforms are ignored, as GL does.
+        NumPy unsigned integers set ``uint`` uniforms, other integers and bools ``int`` and
+        ``bool`` ones."""
         for name, value in uniforms.items():
             loc = self.location(name)
             if loc < 0:
+                continue
+            if isinstance(value, np.unsignedinteger):
+                GL.glUniform1ui(loc, int(value))
                 continue
             if isinstance(value, (bool, int, np.integer)):
                 GL.glUniform1i(loc, int(value))

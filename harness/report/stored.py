@@ -3,7 +3,6 @@ from inside the folder. Whatever cannot be read becomes a note on the page, neve
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import re
@@ -25,7 +24,8 @@ REQUIRED = {"run_id", "schema", "scene", "technique", "params", "width", "height
 
 def read_results(folder: Path):
     """``folder``'s results as a DataFrame; ConfigError naming the folder when it holds no
-    results.csv, or one of another tool or another results version, or no runs."""
+    results.csv, or one of another tool (:func:`harness.results.load` says why) or another
+    results version, or no runs."""
     import pandas as pd
 
     folder = Path(folder)
@@ -33,16 +33,13 @@ def read_results(folder: Path):
     if not path.is_file():
         raise ConfigError(f"{folder}: no {results.RESULTS_FILE} here (not a results folder)")
     try:
-        with path.open(newline="", encoding="utf-8") as f:
-            header = next(csv.reader(f), [])
-        missing = sorted(REQUIRED - set(header))
-        if missing:
-            raise ConfigError(f"{path}: not shadowbench results (no column {', '.join(missing)})")
         rows = results.load(folder)
-    except (OSError, UnicodeDecodeError, ValueError, csv.Error, pd.errors.ParserError) as e:
+    except (OSError, ValueError, pd.errors.ParserError) as e:
         raise ConfigError(f"{path}: cannot be read as results ({type(e).__name__})") from None
-    if rows.empty:
-        raise ConfigError(f"{path}: no runs")
+    missing = sorted(REQUIRED - set(rows.columns))
+    if missing:
+        raise ConfigError(f"{path}: not a shadowbench results file (no column "
+                          f"{', '.join(missing)})")
     versions = set(pd.to_numeric(rows["schema"], errors="coerce").dropna().astype(int))
     if versions != {results.SCHEMA_VERSION}:
         raise ConfigError(f"{path}: results version {sorted(versions) or 'missing'}; this "

@@ -1,4 +1,5 @@
-// The camera G-buffer: world position (w = 1 where covered) and flat normal (w = albedo).
+// The camera G-buffer: world position (w = 1 where covered) and flat normal (w = albedo; not
+// defined where not covered).
 uniform sampler2D gbuffer_position;
 uniform sampler2D gbuffer_normal;
 
