@@ -117,6 +117,11 @@ class MapShading:
         self.map = LightDepthMap(frame, res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
+    def update(self, frame: Frame) -> None:
+        """Fit the map to the frame's light: an engine refits it every frame (timed)."""
+        with frame.measure("light_fit"):
+            self.map.frustum = fit_light(frame.scene, self.map.res)
+
     def render(self, frame: Frame, slope_bias: float, **uniforms) -> None:
         """Both passes; ``uniforms`` go to the shading shader."""
         with frame.measure("shadow_map"):
@@ -154,9 +159,7 @@ class FilteredShadowMap:
         return self.passes.map
 
     def update(self, frame: Frame) -> None:
-        """Fit the map to the frame's light: an engine refits it every frame (timed)."""
-        with frame.measure("light_fit"):
-            self.map.frustum = fit_light(frame.scene, self.map.res)
+        self.passes.update(frame)
 
     def render(self, frame: Frame, sampling: Sampling) -> None:
         self.passes.render(frame, sampling.slope_bias, **sampling_uniforms(frame, sampling))

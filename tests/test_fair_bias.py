@@ -60,6 +60,7 @@ def fair_runs(gl_context, scene_at):
                     cls = registry.get(technique)
                     run = cls(cls.Params(res=res))
                     run.prepare(frame)
+                    run.update(frame)
                     frame.meter.new_frame(measuring=True)
                     v = run.render(frame).visibility
                     run.release()

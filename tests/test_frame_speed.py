@@ -30,6 +30,7 @@ def render_v(frame, technique: str, params: dict) -> np.ndarray:
     cls = registry.get(technique)
     run = cls(cls.Params(**params))
     run.prepare(frame)
+    run.update(frame)
     try:
         frame.gbuffer.render(frame.geometry, frame.camera.view_proj)
         return run.render(frame).visibility
