@@ -746,7 +746,9 @@ class WarpedShadowMap(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         with frame.measure("shadow_map"):
-            # casters beyond the fitted depth range still occlude: clamp them, never clip them
+            # casters nearer the light than the fitted range still occlude: depth clamp puts them
+            # on the near plane instead of clipping them (past the far plane, where the clamped
+            # depth equals the cleared one, lie no receivers to shadow)
             GL.glEnable(GL.GL_DEPTH_CLAMP)
             self.map.render(frame)
             GL.glDisable(GL.GL_DEPTH_CLAMP)
