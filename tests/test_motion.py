@@ -367,17 +367,24 @@ def _rows(out):
         return list(csv.DictReader(f))
 
 
+def _with_box_orbit(small_scene_file, **orbit):
+    """A 64 x 48 scene file with box_plane and box_orbit, box_plane moving 4 frames by
+    ``orbit``."""
+    path = small_scene_file("box_plane", size=(64, 48))
+    scenes = yaml.safe_load(path.read_text())
+    scenes["scenes"]["box_orbit"] = {**scenes["scenes"]["box_plane"],
+                                     "motion": {"frames": 4, **orbit}}
+    path.write_text(yaml.safe_dump(scenes))
+    return path
+
+
 def test_moving_runs_resume_like_still_ones(small_scene_file, tmp_path, gl_context, capsys):
     """A scene file with a moving and a still scene: the run records flicker, its worst
     frame and pops for the moving one only (the still one's columns empty), the arrays hold
     the per-frame series; after one row is lost (a kill), the same command renders that run
     alone, with the same run id and the same values. Catches a moving run whose id changes
     between invocations and a moving row written without its status."""
-    path = small_scene_file("box_plane", size=(64, 48))
-    scenes = yaml.safe_load(path.read_text())
-    scenes["scenes"]["box_orbit"] = {**scenes["scenes"]["box_plane"],
-                                     "motion": {"frames": 4, "camera_orbit": 20}}
-    path.write_text(yaml.safe_dump(scenes))
+    path = _with_box_orbit(small_scene_file, camera_orbit=20)
     out = tmp_path / "run"
     args = ["run", "--scene-file", str(path), "--techniques", "sm,sv", "--out", str(out),
             "--quiet"]
@@ -414,11 +421,7 @@ def test_the_dashboard_shows_error_and_flicker_per_frame_and_the_worst_frames(
 
     from harness.report import build_report
 
-    path = small_scene_file("box_plane", size=(64, 48))
-    scenes = yaml.safe_load(path.read_text())
-    scenes["scenes"]["box_orbit"] = {**scenes["scenes"]["box_plane"],
-                                     "motion": {"frames": 4, "light_orbit": 20}}
-    path.write_text(yaml.safe_dump(scenes))
+    path = _with_box_orbit(small_scene_file, light_orbit=20)
     experiment = tmp_path / "experiment.yaml"
     experiment.write_text(yaml.safe_dump({"techniques": {"sm": {"product": {"res": [64, 256]}},
                                                          "sv": {}}, "warmup": 0}))

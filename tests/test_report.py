@@ -178,7 +178,8 @@ def test_report_on_a_folder_without_results_is_one_line(tmp_path, capsys):
     """Catches a traceback (FileNotFoundError, KeyError on a foreign CSV) instead of exit 2."""
     (tmp_path / "foreign").mkdir()
     (tmp_path / "foreign" / "results.csv").write_text("a,b\n1,2\n")
-    for folder, why in ((tmp_path, "no results.csv"), (tmp_path / "foreign", "not a shadowbench results file")):
+    for folder, why in ((tmp_path, "no results.csv"),
+                        (tmp_path / "foreign", "not a shadowbench results file")):
         assert shadowbench(["report", str(folder)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and why in err[0]
