@@ -13,8 +13,8 @@ these frames.
 - :func:`cheapest_at_error`: the cheapest setting of each technique within an error threshold
   (multiples of ``edge_floor``, the best score a 0/1 technique can reach; ``wrong_pct`` levels).
 - :func:`best_within_budget`: the most accurate setting within a multiple of the G-buffer time.
-- :func:`summary`: per technique across scenes, its share of fronts and its cost ratio to ``sm``
-  at equal error.
+- :func:`summary`: per technique across scenes, its share of fronts and its cost ratio to the
+  baseline technique (``registry.baseline()``: sm among the built-ins) at equal error.
 """
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ SUMMARY_COLUMNS = ["technique", "groups", "front_groups", "front_share", "ratio_
 
 
 def summary(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae",
-            reference: str = "sm") -> pd.DataFrame:
+            reference: str | None = None) -> pd.DataFrame:
     """One row per technique across every scene and size it ran at.
 
     ``groups``: the scene/size groups where it has runs; ``front_groups``: those where at least
@@ -185,7 +185,10 @@ def summary(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae",
     reaches, ``ratio_count`` their number, ``unreached`` the number of levels none of its runs
     reaches; ``worst_ratio`` is the largest, at ``worst_scene``, ``worst_size`` ("WxH") and
     ``worst_error`` (L). The reference's own ratio is 1; without reference runs the ratio
-    columns are empty."""
+    columns are empty. ``reference`` defaults to the registered baseline technique."""
+    from . import registry
+
+    reference = reference or registry.baseline()
     rows = df[_finite(df, cost, error)].reset_index(drop=True)
     if rows.empty:
         return pd.DataFrame(columns=SUMMARY_COLUMNS)

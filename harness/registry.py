@@ -44,6 +44,16 @@ def techniques() -> dict[str, type[Technique]]:
     return dict(sorted(found.items()))
 
 
+def baseline() -> str | None:
+    """The name of the registered technique that declares itself the baseline (None when
+    none does)."""
+    marked = [name for name, cls in techniques().items() if cls.baseline]
+    if len(marked) > 1:
+        raise RegistryError(f"techniques {', '.join(marked)} each declare baseline = True; "
+                            "one baseline at most")
+    return marked[0] if marked else None
+
+
 def get(name: str) -> type[Technique]:
     registered = techniques()
     if name not in registered:

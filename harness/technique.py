@@ -73,6 +73,9 @@ class Technique:
     # ``techniques: curves`` runs, one knob at a time from the defaults (see
     # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
     quality_knobs: ClassVar[dict[str, tuple]] = {}
+    # The technique whose cost the others' is divided by at equal error (analysis.summary, the
+    # dashboard's overview): one registered technique says so, the harness names none.
+    baseline: ClassVar[bool] = False
 
     def __init__(self, params: TechniqueParams):
         self.params = params

@@ -12,7 +12,7 @@ float sample_test(vec2 texel, float depth, float bias) {
     vec4 depths = texelFetch(shadow_map, t, 0);
     float lit = 0.0;
     for (int i = 0; i < N_DEPTHS; ++i) {
-        lit += depth - bias > depths[i] ? 0.0 : 1.0;
+        lit += depth - bias - depth_precision > depths[i] ? 0.0 : 1.0;
     }
     return lit / float(N_DEPTHS);
 }

@@ -36,6 +36,8 @@ class ShadowMap(Technique):
     # quality knob: the map size (the one way Williams' map buys accuracy with time), in
     # factor-4 steps that keep make bench within its 10 minutes
     quality_knobs = {"res": (256, 1024, 4096)}
+    # the oldest and simplest map: the others' cost is read as a multiple of its
+    baseline = True
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

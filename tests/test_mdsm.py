@@ -220,6 +220,28 @@ def test_one_depth_is_pcf(scene_at, evaluate, scene_name, k, q, bias):
     assert 0 < mdsm.visibility.mean() < 1
 
 
+def test_one_depth_is_pcf_far_from_the_origin(evaluate):
+    """hard_far_from_origin (box_plane 1e5 from the origin, where float32 depths round to 0.008
+    units): MDSM(k, 1) still equals PCF(k) bit for bit, so its depth test adds the same float32
+    rounding term as every other (shadow_map.glsl's depth_precision). Catches mdsm's n-shadow
+    test without that term."""
+    from pathlib import Path
+
+    from harness import config
+    from harness.scene import build_scene
+
+    scene_file = Path(__file__).resolve().parent.parent / "experiments" / "hard_cases" / \
+        "scenes.yaml"
+    scene = build_scene("hard_far_from_origin",
+                        config.load_scenes(scene_file)["hard_far_from_origin"],
+                        scene_file).with_resolution(128, 128)
+    mdsm = ok(evaluate(scene, "mdsm", {"n": 1, "k": 9, "q": 25, "res": 128, "bias": 0.0,
+                                       "slope_bias": 1.0}))
+    pcf = ok(evaluate(scene, "pcf", pcf_params(9, 128, 0.0, slope_bias=1.0)))
+    assert np.array_equal(mdsm.visibility, pcf.visibility)
+    assert 0 < mdsm.visibility.mean() < 1
+
+
 # --- cost accounting ----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("n, q", [(1, 9), (2, 9), (3, 25)])

@@ -47,6 +47,15 @@ def test_entry_point_name_must_match_class_name(monkeypatch):
         registry.techniques.cache_clear()
 
 
+def test_one_baseline_at_most(monkeypatch):
+    """sm is the built-ins' baseline (the dashboard divides costs by its); a second technique
+    declaring itself one is an error naming both. Catches the baseline chosen silently."""
+    assert registry.baseline() == "sm"
+    monkeypatch.setattr(registry.get("pcf"), "baseline", True)
+    with pytest.raises(registry.RegistryError, match="pcf, sm each declare baseline"):
+        registry.baseline()
+
+
 TECHNIQUES = list(registry.techniques())
 TECHNIQUE_DIR = Path(techniques_package.__file__).resolve().parent
 GL_NAME_RANGE = range(1, 2001)

@@ -2,15 +2,15 @@
 ``manifest.json`` and the run arrays); it never renders.
 
 One self-contained file: its stylesheet, its scripts (``static/charts.js``, a small SVG plotter,
-and ``static/page.js``) and every image (PNG data URIs at the size shown) are inside it, so it
+and ``static/page.js``) and every image (WebP data URIs at the size shown) are inside it, so it
 works copied on its own and offline. Images larger than shown are also written at native size
 under ``DIR/images/``, which the viewer opens on a click when they are there.
 
 The page's parts, one module each:
 
 - ``overview``: across all scenes, per technique its share of cost-accuracy fronts, its median
-  cost ratio to sm at equal error and its worst case; the renderer's caveat; failures and noisy
-  runs counted; the table of scenes (thumbnail, description, the cheapest good-enough pick);
+  cost ratio to the baseline technique (sm) at equal error and its worst case; the renderer's
+  caveat; failures and noisy runs counted; the table of scenes (thumbnail, description, the cheapest good-enough pick);
 - ``scene_section``: per scene the cost-accuracy plot (``plots``), which technique within each
   error threshold and time budget, every run in a table;
 - ``viewer``: any run's reference, V, signed error, shaded image, worst edge crops and maps;
@@ -26,7 +26,7 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from .. import analysis
+from .. import analysis, registry
 from . import images, overview, plots
 from .papers import build_papers_page, papers_link
 from .render import render, write_page
@@ -72,6 +72,7 @@ def build_report(out_dir: str | Path) -> Path:
         caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
         hidden=len(everything) - len(shown),
         summaries=overview.summaries(current, shown, colours), colours=colours,
+        baseline=registry.baseline() or "the baseline",
         scenes=scenes, stability=stability_table(shown),
         theta=plots.theta(current, colours), notes=folder.notes,
         papers=papers_link(folder.root),

@@ -1,6 +1,6 @@
 """The overview: the answer across all scenes in one screen. Per technique, how often it is on a
-scene's cost-accuracy front, its median cost ratio to sm at equal error and its worst case
-(:func:`harness.analysis.summary`, for every cost and error axis the results have); the
+scene's cost-accuracy front, its median cost ratio to the baseline technique at equal error and
+its worst case (:func:`harness.analysis.summary`, for every cost and error axis the results have); the
 renderer and what its times mean; failures and noisy runs counted; then the table of scenes."""
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ def counts(shown, current) -> dict:
 
 
 def summaries(current, shown, colours: dict[str, str]) -> list[dict]:
-    """One table per (cost, error) axis pair: per technique its front share, cost ratio to sm
-    at equal error and worst case, with its failed and noisy runs."""
+    """One table per (cost, error) axis pair: per technique its front share, cost ratio to the
+    baseline at equal error and worst case, with its failed and noisy runs."""
     failed = shown[shown["status"] == "error"].groupby("technique").size()
     tables = []
     for cost, cost_title in plots.axes(current, plots.COSTS).items():
