@@ -155,7 +155,7 @@ def best_within_budget(df: pd.DataFrame, *, budgets=(1, 2, 4, 8), error: str = "
     budget x the G-buffer pass's time (``base``; the median of the scene and size's runs, as
     ``budget_ms``). Equal errors: the cheaper. ``met`` False where no run fits;
     ``most_accurate`` marks the best technique within each budget."""
-    if base not in df.columns:
+    if any(column not in df.columns for column in (base, cost, error)):
         return pd.DataFrame(columns=BUDGET_COLUMNS + [cost, error])
     base_ms = df.groupby(GROUP)[base].transform("median")
     criteria = [(error, b, df[cost], b * base_ms) for b in budgets]

@@ -18,10 +18,9 @@ from pathlib import Path
 
 from . import interrupt
 from .config import ConfigError
-from .timing import NOISY_CONTENTION, STATISTICS
+from .timing import NOISY_CONTENTION, STATISTICS, too_noisy
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
-NOISY_RUNS_WARNING = 0.05  # the summary warns when more than this share of runs is noisy
 MAX_WORKERS = 256
 # OSErrors that say the machine could not finish the command, not that the input was bad
 MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
@@ -29,8 +28,6 @@ MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
 
 def _names(option: str, text: str | None) -> list[str] | None:
     """``a,b`` -> ["a", "b"]; None when the option is absent; an error when it names nothing."""
-    from .config import ConfigError
-
     if text is None:
         return None
     names = [t.strip() for t in text.split(",") if t.strip()]
@@ -146,7 +143,7 @@ def cmd_run(args) -> int:
           file=sys.stderr)
     timed = [r for r in mine if r["status"] == "ok" and r.get("noisy", "") != ""]
     noisy = sum(r["noisy"] == "1" for r in timed)
-    if noisy > NOISY_RUNS_WARNING * len(timed):
+    if too_noisy(noisy, len(timed)):
         print(f"warning: {noisy} of {len(timed)} runs are noisy (other processes used more than "
               f"{NOISY_CONTENTION:.0%} of the CPU while they were timed: cpu_contention); their "
               f"times are inflated: run again on a quiet machine, or add --retime-noisy",
@@ -168,7 +165,7 @@ def cmd_reference(args) -> int:
     import numpy as np
     from pydantic import ValidationError
 
-    from .config import ConfigError, ReferenceSettings, check_resolution
+    from .config import ReferenceSettings, check_resolution
     from .reference import compute_reference
     from .report import visibility_png
     from .results import inside, save_arrays
@@ -328,12 +325,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _known_failure(e: Exception) -> tuple[int, str] | None:
     """(exit code, one-line message) for an expected failure; None for a bug."""
-    from .config import ConfigError
     from .gl.context import BackendError
     from .reference import UntraceableSceneError
-    from .registry import RegistryError
 
-    if isinstance(e, (ConfigError, BackendError, RegistryError)):
+    if isinstance(e, (ConfigError, BackendError)):  # a RegistryError is a ConfigError
         return 2, str(e)
     if isinstance(e, UntraceableSceneError):  # `reference` on a scene Mitsuba cannot trace
         return 1, str(e)

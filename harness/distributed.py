@@ -40,7 +40,11 @@ def _frame_on_worker(scene, frames: int, warmup: int):
             frame.release()
         _worker_frames.clear()
         frame = Frame(scene)
-        scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        try:
+            scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        except BaseException:
+            frame.release()
+            raise
         _worker_frames[key] = (frame, scene_ms, frags_scene)
     return _worker_frames[key]
 

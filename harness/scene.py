@@ -29,12 +29,6 @@ class MeshPart:
     faces: np.ndarray  # (F, 3) int32
     albedo: float
 
-    @cached_property
-    def is_closed(self) -> bool:
-        closed = trimesh.Trimesh(self.vertices, self.faces, process=False).is_watertight
-        raise_if_interrupted()
-        return closed
-
 
 @dataclass(frozen=True)
 class Light:

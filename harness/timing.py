@@ -2,7 +2,7 @@
 
 ``median_interval`` gives a frame-time median with a 95% interval of the median, by order
 statistics (distribution-free: the binomial count of samples below the median) or by a
-seeded percentile bootstrap. ``cpu_sample`` and ``others_share`` measure how much of the
+seeded percentile bootstrap. ``cpu_sample``, ``others_time`` and ``contention`` measure how much of the
 machine's CPU time other processes used during a window (``/proc/stat`` for the whole
 machine, ``getrusage(RUSAGE_SELF)`` for this process with all its threads, llvmpipe's
 rasterizer threads included).
@@ -25,6 +25,19 @@ BOOTSTRAP_RESAMPLES = 2000
 # while it was timed: llvmpipe runs one rasterizer thread per core, so on a machine that busy
 # its frames lost about that share of their CPU.
 NOISY_CONTENTION = 0.10
+# The run summary and the dashboard warn when more than this share of the timed runs is noisy.
+NOISY_RUNS_SHARE = 0.05
+# GL renderers that rasterise on the CPU: no GPU timer queries, and times that rank CPU cost.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
+
+
+def too_noisy(noisy: int, timed: int) -> bool:
+    """Whether ``noisy`` of ``timed`` runs earn the warning."""
+    return noisy > NOISY_RUNS_SHARE * timed
+
+
+def is_software_renderer(renderer: str) -> bool:
+    return any(name in renderer.lower() for name in SOFTWARE_RENDERERS)
 
 
 def order_statistic_ranks(n: int, confidence: float = CONFIDENCE) -> tuple[int, int]:

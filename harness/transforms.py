@@ -55,15 +55,11 @@ def camera_matrices(camera: cfg.Camera, width: int, height: int) -> CameraMatric
 
 @dataclass(frozen=True)
 class LightFrustum:
-    """A light's map projection. Map depth is light view-space distance (-z), in scene units.
-
-    ``texel_world``: world size of one map texel (orthographic), or at unit depth (perspective).
-    """
+    """A light's map projection. Map depth is light view-space distance (-z), in scene units."""
 
     view: np.ndarray
     proj: np.ndarray
     is_ortho: bool
-    texel_world: float
     near: float
     far: float
 
@@ -72,7 +68,8 @@ class LightFrustum:
         return self.proj @ self.view
 
 
-def _corners(bounds: np.ndarray) -> np.ndarray:
+def box_corners(bounds: np.ndarray) -> np.ndarray:
+    """The 8 corners of an axis-aligned box given as [min, max] rows."""
     return np.array([[bounds[i, 0], bounds[j, 1], bounds[k, 2]]
                      for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 
@@ -84,7 +81,7 @@ def _to_view(view: np.ndarray, points: np.ndarray) -> np.ndarray:
 def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum:
     """Directional: orthographic fitted to the scene bounds. Spot: perspective over its cone."""
     light, bounds = scene.light, scene.bounds
-    corners = _corners(bounds)
+    corners = box_corners(bounds)
     if light.type == "directional":
         center = bounds.mean(axis=0)
         radius = max(np.linalg.norm(bounds[1] - bounds[0]) / 2, 1e-6)
@@ -102,7 +99,7 @@ def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum
         near = max(near, 1e-4)
         proj = pyrender.OrthographicCamera(xmag=half[0], ymag=half[1], znear=near,
                                            zfar=far).get_projection_matrix()
-        return LightFrustum(view, proj, True, float(2 * max(half[0], half[1]) / res), near, far)
+        return LightFrustum(view, proj, True, near, far)
     up = any_perpendicular_up(light.direction)
     view = look_at(light.position, light.position + light.direction, up)
     depth = -_to_view(view, corners)[:, 2]
@@ -111,4 +108,4 @@ def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum
     yfov = math.radians(light.fov_deg)
     proj = pyrender.PerspectiveCamera(yfov=yfov, znear=near, zfar=far,
                                       aspectRatio=1.0).get_projection_matrix(res, res)
-    return LightFrustum(view, proj, False, float(2 * math.tan(yfov / 2) / res), near, far)
+    return LightFrustum(view, proj, False, near, far)

@@ -146,7 +146,7 @@ class SilhouetteMap(Technique):
         self.shading.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
         self.shading.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1),
                          bias=p.bias)
-        frame.draw_fullscreen()
+        frame.draw_fullscreen(covered_only=True)  # V = 1 and nothing counted where no surface
 
     def _read_counters(self) -> tuple[int, int]:
         """(shaded pixels, pixels that took the silhouette path) of the last shading pass."""

@@ -39,7 +39,8 @@ from pydantic import Field
 from harness import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
-from harness.transforms import LightFrustum, any_perpendicular_up, fit_light, look_at
+from harness.transforms import (LightFrustum, any_perpendicular_up, box_corners, fit_light,
+                               look_at)
 
 from .shadowmap import LightDepthMap
 
@@ -223,11 +224,6 @@ def _box_planes(bounds: np.ndarray) -> np.ndarray:
 _CLIP_CUBE = np.array([[-1.0] * 3, [1.0] * 3])
 
 
-def _box_corners(bounds: np.ndarray) -> np.ndarray:
-    return np.array([[bounds[i, 0], bounds[j, 1], bounds[k, 2]]
-                     for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-
-
 def convex_vertices(planes: np.ndarray, tolerance: float) -> np.ndarray:
     """Vertices of the convex polytope {p : a . p + d >= 0}: every three-plane intersection
     inside all the half-spaces (coincident planes of a flat box are simply singular triples)."""
@@ -265,8 +261,8 @@ def receiver_body(setup: ViewSetup) -> np.ndarray:
         planes.append(_planes_of(setup.spot.view_proj))
     points = convex_vertices(np.vstack(planes), 1e-7 * scale)
     if len(points) < 1:
-        points = (_box_corners(box) if setup.spot is None
-                  else _project(np.linalg.inv(setup.spot.view_proj), _box_corners(_CLIP_CUBE)))
+        points = (box_corners(box) if setup.spot is None
+                  else _project(np.linalg.inv(setup.spot.view_proj), box_corners(_CLIP_CUBE)))
     return points
 
 
@@ -455,7 +451,7 @@ def local_light_view(basis: np.ndarray, origin: np.ndarray) -> np.ndarray:
     return view
 
 
-def frustum_from_clip(light_view: np.ndarray, clip: np.ndarray, res: int,
+def frustum_from_clip(light_view: np.ndarray, clip: np.ndarray,
                       origin: np.ndarray) -> LightFrustum:
     """A LightFrustum whose view is the rigid light basis translated to ``origin`` (a local
     origin near the camera, or a spot light's position) and whose proj carries the warp.
@@ -463,10 +459,9 @@ def frustum_from_clip(light_view: np.ndarray, clip: np.ndarray, res: int,
     The GL passes run in float32: with an untranslated basis, a scene far from the world origin
     (1e5 units) puts light-view coordinates of size 1e5 into proj, whose perspective rows then
     subtract translations of that size and amplify the float32 rounding into texels. Relative
-    to a nearby origin, proj sees small coordinates and only the rigid view meets the large ones.
-    ``texel_world`` is unused by the warped shading (it computes the texel size per pixel)."""
+    to a nearby origin, proj sees small coordinates and only the rigid view meets the large ones."""
     view = local_light_view(light_view, np.asarray(origin, dtype=np.float64))
-    return LightFrustum(view, clip @ np.linalg.inv(view), False, 1.0 / res, 0.0, 0.0)
+    return LightFrustum(view, clip @ np.linalg.inv(view), False, 0.0, 0.0)
 
 
 # map depth grows along the light's travel (-z of an oriented basis)
@@ -528,7 +523,7 @@ def light_space_warp(setup: ViewSetup, res: int, eye_distance: EyeDistance) -> W
                      [0, 0, -1, 0],
                      [0, 1, 0, 0]], dtype=np.float64)
     clip = cube_fit(warp @ to_p @ basis, space.receivers, space.body) @ space.to_space
-    return Warp(frustum_from_clip(space.rigid, clip, res, space.origin), clip, theta, phi, lam,
+    return Warp(frustum_from_clip(space.rigid, clip, space.origin), clip, theta, phi, lam,
                 near, far, p_near, optimal)
 
 
@@ -602,7 +597,7 @@ def post_perspective_warp(setup: ViewSetup, res: int) -> PostPerspective:
     if fallback:
         theta = space_theta(space)
         clip = unwarped_clip(space, oriented_basis(space.light, warp_axis(space, theta, setup.phi)))
-    return PostPerspective(frustum_from_clip(space.rigid, clip, res, space.origin), clip,
+    return PostPerspective(frustum_from_clip(space.rigid, clip, space.origin), clip,
                            setup.theta, slide, camera, kind, fallback)
 
 
@@ -756,11 +751,9 @@ class WarpedShadowMap(Technique):
             frame.begin_visibility()
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
-            uniforms = self.map.lookup_uniforms(unit, p.slope_bias, frame)
-            uniforms.update(light_is_ortho=True, texel_world=1.0)
-            self.shading.set(**uniforms)
-            self.shading.set(grid_n=math.isqrt(p.k), bias=p.bias)
-            frame.draw_fullscreen()
+            self.shading.set(**self.map.lookup_uniforms(unit, p.slope_bias, frame),
+                             grid_n=math.isqrt(p.k), bias=p.bias)
+            frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         warnings = []
         if self.columns["outside_pct"] > 0:
             warnings.append(f"{self.columns['outside_pct']:.2f}% of visible receivers fall "

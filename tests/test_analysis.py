@@ -155,7 +155,8 @@ def test_best_within_budget_uses_the_scenes_median_g_buffer_time():
                       (8, "sm"): "res=4096", (8, "pcf"): "res=1024"}
     best = {r.budget: r.technique for r in a[a["most_accurate"]].itertuples()}
     assert best == {1: "sm", 2: "sm", 4: "pcf", 8: "sm"}
-    assert analysis.best_within_budget(floor_table().drop(columns="scene_ms")).empty
+    for lacking in ("scene_ms", "time_ms", "edge_mae"):  # e.g. flicker on still scenes only
+        assert analysis.best_within_budget(floor_table().drop(columns=lacking)).empty
 
 
 def test_summary_front_share_and_cost_ratio_at_equal_error():

@@ -115,11 +115,6 @@ class Framebuffer:
         a = a.astype(np.float32) / 255.0 if a.dtype == np.uint8 else a
         return np.ascontiguousarray(a[..., 0] if channels == 1 else a)
 
-    def read_stencil(self) -> np.ndarray:
-        self.bind()
-        stencil = self._read_pixels(GL.GL_STENCIL_INDEX, GL.GL_UNSIGNED_BYTE, np.uint8, 1)
-        return np.ascontiguousarray(stencil[..., 0])
-
     def _read_pixels(self, fmt, typ, dtype, channels: int) -> np.ndarray:
         """(H, W, channels) of the bound read buffer, row 0 at the top (a view)."""
         pixels = np.empty((self.height, self.width, channels), dtype)

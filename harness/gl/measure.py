@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from OpenGL import GL
 from OpenGL.GL.ARB import pipeline_statistics_query as psq
 
-from ..timing import contention, median_interval
+from ..timing import contention, is_software_renderer, median_interval
 
 TIMERS = ("clock", "query")
 PIPELINE_STATISTICS_EXTENSION = "GL_ARB_pipeline_statistics_query"
@@ -55,8 +55,7 @@ def default_timer(renderer: str) -> str:
         if chosen not in TIMERS:
             raise ValueError(f"SHADOWBENCH_TIMER must be one of {TIMERS}, got {chosen!r}")
         return chosen
-    software = any(s in renderer.lower() for s in ("llvmpipe", "softpipe", "swrast"))
-    return "clock" if software else "query"
+    return "clock" if is_software_renderer(renderer) else "query"
 
 
 def pipeline_statistics_missing() -> str:

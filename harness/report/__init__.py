@@ -10,7 +10,8 @@ The page's parts, one module each:
 
 - ``overview``: across all scenes, per technique its share of cost-accuracy fronts, its median
   cost ratio to the baseline technique (sm) at equal error and its worst case; the renderer's
-  caveat; failures and noisy runs counted; the table of scenes (thumbnail, description, the cheapest good-enough pick);
+  caveat; failures and noisy runs counted; the table of scenes (thumbnail, description, the
+  cheapest good-enough pick);
 - ``scene_section``: per scene the cost-accuracy plot (``plots``), which technique within each
   error threshold and time budget, every run in a table;
 - ``viewer``: any run's reference, V, signed error, shaded image, worst edge crops and maps;

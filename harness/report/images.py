@@ -19,6 +19,7 @@ import numpy as np
 from PIL import Image
 
 from .. import metrics
+from ..results import replace_atomically
 
 SHOWN_PX = 256  # the longer side of an image as the page shows it
 STEPS = 255  # palette entries for values; entry 255 is "none"
@@ -179,8 +180,6 @@ def data_uri(values: np.ndarray, scale: Scale) -> str:
 
 
 def write_png(values: np.ndarray, scale: Scale, path: Path) -> None:
-    """A palette PNG at native size, written whole (a temporary file, then a rename)."""
+    """A palette PNG at native size, written whole (:func:`harness.results.replace_atomically`)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    _image(values, scale).save(tmp, format="PNG", compress_level=1)
-    tmp.replace(path)
+    replace_atomically(path, lambda f: _image(values, scale).save(f, format="PNG", compress_level=1))

@@ -6,10 +6,8 @@ renderer and what its times mean; failures and noisy runs counted; then the tabl
 from __future__ import annotations
 
 from .. import analysis
+from ..timing import is_software_renderer, too_noisy
 from . import plots
-
-NOISY_WARNING_SHARE = 0.05  # more noisy runs than this share earns a warning
-SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
 
 
 def caveat(meta: dict, rows) -> str:
@@ -17,7 +15,7 @@ def caveat(meta: dict, rows) -> str:
     gl = meta.get("gl") or {}
     renderer = gl.get("renderer") or next(
         (r for r in rows.get("renderer", []) if isinstance(r, str) and r), "an unknown renderer")
-    if any(name in renderer.lower() for name in SOFTWARE_RENDERERS):
+    if is_software_renderer(renderer):
         return (f"Rendered by {renderer}, a software rasteriser: its times rank CPU cost, not "
                 "GPU cost; the counted work (fragments, memory, fetches) holds on any GPU.")
     timer = gl.get("timer")
@@ -32,7 +30,7 @@ def counts(shown, current) -> dict:
             "failed": int((shown["status"] == "error").sum()),
             "skipped": int((shown["status"] == "skipped").sum()),
             "noisy": noisy, "timed": len(timed),
-            "noisy_warning": noisy > NOISY_WARNING_SHARE * len(timed)}
+            "noisy_warning": too_noisy(noisy, len(timed))}
 
 
 def summaries(current, shown, colours: dict[str, str]) -> list[dict]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
+from ..results import replace_atomically
 from .images import LEGEND
 from .stored import SAFE_NAME
 
@@ -48,8 +49,6 @@ def render(template: str, **context) -> str:
 
 
 def write_page(path: Path, text: str) -> Path:
-    """Replace ``path`` whole: a temporary file beside it, then a rename."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
+    """Replace ``path`` whole (:func:`harness.results.replace_atomically`)."""
+    replace_atomically(path, lambda f: f.write(text.encode("utf-8")))
     return path
