@@ -96,7 +96,7 @@ def equivalence(runs: Runs, where: str, scene: str, triples, reported: str) -> C
     if any(wider for wider, _ in too_far):
         reasons.append("the n-SM's edge is wider than the larger kernel's ("
                        + ", ".join(t for wider, t in too_far if wider) + "): its extra depths "
-                       f"are the minimum and maximum of a {window} x {window}-texel window "
+                       f"are the middle samples of the sorted {window} x {window}-texel window "
                        f"(q = {TABLE['q']}), which sets how far they widen the edge, whatever "
                        "the kernel; the paper leaves the window open (\"a neighborhood\")")
     if any(not wider for wider, _ in too_far):
