@@ -2,7 +2,7 @@
 
 ``experiments/papers/*.yaml`` are run into ``ROOT/<experiment>/``; :func:`papers.claims.evaluate`
 turns those results (and, for GMNPR Figures 5 and 6, the analytic formulas of
-``techniques.warping``) into claims written to ``ROOT/papers.json``, which
+``techniques.warp_equations``) into claims written to ``ROOT/papers.json``, which
 ``harness.report.build_papers_page`` renders as ``ROOT/papers.html``.
 
 One module per paper holds its claims (``pcf``, ``mdsm``, ``silhouette``, ``sv``, ``gmnpr``);

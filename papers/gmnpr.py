@@ -1,5 +1,5 @@
 """Zhang, Sun, Zhao, Wang 2007, "Generalized minimum-norm perspective shadow maps" (GMNPR):
-Figures 5 and 6 from the formulas of ``techniques.warping`` and Figure 8's shadow quality
+Figures 5 and 6 from the formulas of ``techniques.warp_equations`` and Figure 8's shadow quality
 (experiment ``gmnpr``)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from harness import metrics
-from techniques import warping
+from techniques import warp_equations
 
 from .common import Claim, Runs, g, increasing
 
@@ -22,17 +22,17 @@ NEAR_ROWS = 0.6  # the image's lower 40 %: the ground within a few units of the 
 def analytic_claims() -> list[Claim]:
     n, f, phi = SETUP["n"], SETUP["f"], SETUP["phi"]
     thetas = np.radians(np.arange(1.0, 90.01, 0.5))
-    lam_mn = warping.lambda_minimum_norm(thetas, phi, n, f)
-    lam_g = warping.lambda_gmnpr(thetas, phi, n, f)
-    lam_l = warping.lambda_lispsm(thetas, phi, n, f)
+    lam_mn = warp_equations.lambda_minimum_norm(thetas, phi, n, f)
+    lam_g = warp_equations.lambda_gmnpr(thetas, phi, n, f)
+    lam_l = warp_equations.lambda_lispsm(thetas, phi, n, f)
     eps = 1e-6
-    left = float(warping.lambda_gmnpr(phi - eps, phi, n, f))
-    right = float(warping.lambda_gmnpr(phi + eps, phi, n, f))
+    left = float(warp_equations.lambda_gmnpr(phi - eps, phi, n, f))
+    right = float(warp_equations.lambda_gmnpr(phi + eps, phi, n, f))
     above = thetas >= phi
     below_mn = lam_mn[(thetas < phi) & (thetas > phi - np.radians(5))]
     continuous = abs(left - right) <= 1e-4 * right
     decreasing = bool(np.all(np.diff(lam_g[above]) >= 0))  # theta ascending: lambda grows
-    grows = float(warping.lambda_gmnpr(np.radians(1.0), phi, n, f)) > 10 * right
+    grows = float(warp_equations.lambda_gmnpr(np.radians(1.0), phi, n, f)) > 10 * right
     plunge = float(below_mn.min()) < 0.1 * right
     claims = [Claim(
         PAPER, "Figure 5", "lambda_GMNPR decreases slowly from theta = 90 to phi, stays "
@@ -40,11 +40,11 @@ def analytic_claims() -> list[Claim]:
         "lambda plunges toward 0",
         "lambda_1 falls slowly to phi; lambda_2 nose-dives below phi; eq. 8 replaces it",
         f"lambda_GMNPR(phi-) = {g(left)}, (phi+) = {g(right)}, (1 deg) = "
-        f"{g(float(warping.lambda_gmnpr(np.radians(1.0), phi, n, f)))}; eq. 4 within 5 deg "
+        f"{g(float(warp_equations.lambda_gmnpr(np.radians(1.0), phi, n, f)))}; eq. 4 within 5 deg "
         f"below phi down to {g(float(below_mn.min()))}",
         "continuous to 1e-4; monotone above phi; > 10x at 1 deg; eq. 4 < 0.1 x lambda(phi)",
         continuous and decreasing and grows and plunge,
-        why_not="the formulas of techniques.warping do not behave as Figure 5 shows",
+        why_not="the formulas of techniques.warp_equations do not behave as Figure 5 shows",
         plot={"x_title": "theta (degrees)", "y_title": "lambda", "log_y": True,
               "series": [{"name": "eq. 4 (minimum norm)",
                           "x": np.degrees(thetas[lam_mn > 0]).tolist(),
@@ -59,9 +59,10 @@ def analytic_claims() -> list[Claim]:
     series, ends_g, near_l = [], [], []
     for deg in shown:
         t = math.radians(deg)
-        for name, choose in (("LiSPSM", warping.lambda_lispsm), ("GMNPR", warping.lambda_gmnpr)):
+        for name, choose in (("LiSPSM", warp_equations.lambda_lispsm),
+                             ("GMNPR", warp_equations.lambda_gmnpr)):
             lam = float(choose(t, phi, n, f))
-            F = warping.aliasing_F(lam, t, z, phi, n, f)
+            F = warp_equations.aliasing_F(lam, t, z, phi, n, f)
             series.append({"name": f"{name} theta={deg}", "x": z.tolist(), "y": F.tolist(),
                            "dash": "solid" if name == "GMNPR" else "dash"})
             if name == "GMNPR":

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from harness.technique import NotApplicable
 
-from .warping import (PARAMETER_TABLE, ViewSetup, WarpedShadowMap, gmnpr_eye_distance,
-                      light_space_warp, warp_columns)
+from .warp_body import ViewSetup
+from .warp_equations import gmnpr_eye_distance
+from .warp_fit import light_space_warp, warp_columns
+from .warping import PARAMETER_TABLE, WarpedShadowMap
 
 
 class GeneralizedMinimumNormWarp(WarpedShadowMap):

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from .warping import (PARAMETER_TABLE, ViewSetup, WarpedShadowMap, light_space_warp,
-                      lispsm_eye_distance, warp_columns)
+from .warp_body import ViewSetup
+from .warp_equations import lispsm_eye_distance
+from .warp_fit import light_space_warp, warp_columns
+from .warping import PARAMETER_TABLE, WarpedShadowMap
 
 
 class LightSpacePerspectiveShadowMap(WarpedShadowMap):

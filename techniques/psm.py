@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from .warping import PARAMETER_TABLE, ViewSetup, WarpedShadowMap, post_perspective_warp
+from .warp_body import ViewSetup
+from .warp_fit import post_perspective_warp
+from .warping import PARAMETER_TABLE, WarpedShadowMap
 
 
 class PerspectiveShadowMap(WarpedShadowMap):
