@@ -1,0 +1,165 @@
+"""Top of the config package, above scene_schema: the experiment file (which scenes, which
+techniques over which parameter grids, the timing and reference settings) and its loading."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal, Union
+
+from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from ..timing import STATISTICS
+from .limits import DEFAULT_TRIANGLE_BUDGET
+from .scene_schema import SquareInt, Strict
+from .yaml_source import ConfigError, format_validation_error, read_yaml
+
+Scalar = Union[bool, int, float, str]
+
+
+class Grid(Strict):
+    """One parameter grid: every combination of ``product`` times each row of ``zip``,
+    with ``set`` fixed; or, with ``curve``, the technique's quality curve from ``set`` (true:
+    every declared knob and value; a mapping: those knobs, with these values), expanded by the
+    planner, which knows the techniques' declarations."""
+
+    # a non-finite value is the technique's error (runner.validate_params), named there
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=True)
+
+    product: dict[str, list[Scalar]] = {}
+    zip: dict[str, list[Scalar]] = {}
+    set: dict[str, Scalar] = {}
+    curve: Union[Literal[True], dict[str, list[Scalar]], None] = None
+
+    @model_validator(mode="after")
+    def _nonempty(self):
+        if self.curve is not None and (self.product or self.zip):
+            raise ValueError("curve: goes with set only, not with product or zip (a curve walks "
+                             "one knob at a time)")
+        if isinstance(self.curve, dict):
+            if not self.curve:
+                raise ValueError("curve: is empty; name a quality knob with its values, or "
+                                 "write true for every declared one")
+            for key, values in self.curve.items():
+                if not values:
+                    raise ValueError(f"curve.{key} is an empty list")
+        kinds = {"product": self.product, "zip": self.zip, "set": self.set}
+        for name in set().union(*kinds.values()):
+            where = [k for k, values in kinds.items() if name in values]
+            if len(where) > 1:
+                raise ValueError(f"parameter {name!r} is in both {' and '.join(where)}; "
+                                 "give each parameter in one of product, zip, set")
+        for kind in ("product", "zip"):
+            for key, values in getattr(self, kind).items():
+                if not values:
+                    raise ValueError(f"{kind}.{key} is an empty list")
+        lengths = {len(v) for v in self.zip.values()}
+        if len(lengths) > 1:
+            raise ValueError(f"zip lists must have equal lengths, got {sorted(lengths)}")
+        return self
+
+    def combinations(self) -> list[dict]:
+        import itertools
+
+        names = list(self.product)
+        prods = [dict(zip(names, values))
+                 for values in itertools.product(*(self.product[n] for n in names))]
+        rows = ([dict(zip(self.zip, values)) for values in zip(*self.zip.values())]
+                if self.zip else [{}])
+        return [{**self.set, **p, **z} for p in prods for z in rows]
+
+
+class ReferenceSettings(Strict):
+    samples: SquareInt = Field(16, le=1024)
+    seed: int = Field(0, ge=0)
+
+
+class Experiment(Strict):
+    scene_file: str | None = None  # relative to the experiment file; default: --scene-file
+    scenes: Union[Literal["all"], list[str]] = "all"
+    # technique name -> grid(s); or "all": every registered technique at its defaults; or
+    # "curves": every registered technique along its declared quality curve
+    techniques: Union[Literal["all", "curves"], dict[str, Union[Grid, list[Grid]]]]
+    resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
+    triangle_budget: int = Field(DEFAULT_TRIANGLE_BUDGET, ge=1, le=100_000_000)
+    frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
+    warmup: int = Field(2, ge=0, le=1000)
+    # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
+    statistics: Literal[STATISTICS] = "order"
+    reference: ReferenceSettings = ReferenceSettings()
+
+    @field_validator("scenes")
+    @classmethod
+    def _some_scenes(cls, v):
+        if not v:
+            raise ValueError("must name at least one scene, or be 'all'")
+        return v
+
+    @field_validator("techniques")
+    @classmethod
+    def _some(cls, v):
+        if v in ("all", "curves"):
+            return v
+        if not v:
+            raise ValueError("must name at least one technique")
+        for name, grids in v.items():
+            if isinstance(grids, list) and not grids:
+                raise ValueError(f"{name}: empty list of grids")
+        return v
+
+    @field_validator("resolutions")
+    @classmethod
+    def _res(cls, v):
+        if v is not None and (not v or not all(16 <= x <= 8192 for r in v for x in r)):
+            raise ValueError("must be a non-empty list of [width, height] in [16, 8192]")
+        return v
+
+
+def with_timing(exp: Experiment, **options) -> Experiment:
+    """The experiment with command-line timing options (``frames``, ``warmup``,
+    ``statistics``; None keeps the experiment's) validated as if the file had them; a bad
+    value is a ConfigError naming the option, e.g. ``--frames: must be >= 1, got 0``."""
+    given = {k: v for k, v in options.items() if v is not None}
+    if not given:
+        return exp
+    try:
+        return Experiment.model_validate({**exp.model_dump(), **given})
+    except ValidationError as e:
+        first = e.errors()[0]
+        option = str(first["loc"][0])
+        msg = first["msg"].removeprefix("Value error, ")
+        raise ConfigError(f"--{option}: {msg}, got {given.get(option)!r}") from None
+
+
+def load_experiment(path: str | Path) -> tuple[Experiment, object]:
+    """Validate an experiment file; returns the model and the YAML root node (for lines).
+
+    A technique's grid may be empty or null (its defaults), one grid (or curve), or a list of
+    them."""
+    path = Path(path)
+    data, node = read_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: an experiment is a mapping with at least a 'techniques' key "
+                          f"(see experiments/default.yaml), got {type(data).__name__}")
+    techniques = data.get("techniques")
+    if isinstance(techniques, dict):
+        # each grid on its own, so an error names techniques.<name>... rather than the union
+        data = {**data, "techniques": {name: _grids(path, node, name, grids)
+                                       for name, grids in techniques.items()}}
+    try:
+        return Experiment.model_validate(data), node
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(path, e, node)) from None
+
+
+def _grids(path: Path, node, name: str, grids) -> Grid | list[Grid]:
+    if grids is None:
+        return Grid()
+    items = grids if isinstance(grids, list) else [grids]
+    checked = []
+    for i, item in enumerate(items):
+        prefix = ("techniques", name) + ((i,) if isinstance(grids, list) else ())
+        try:
+            checked.append(Grid.model_validate(item))
+        except ValidationError as e:
+            raise ConfigError(format_validation_error(path, e, node, prefix)) from None
+    return checked if isinstance(grids, list) else checked[0]

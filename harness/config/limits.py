@@ -1,0 +1,28 @@
+"""Bottom of the config package: the numbers every scene and experiment must stay within,
+and why; yaml_source, mesh_files and the two schemas above it check against these.
+
+Every number must be finite, and within what the renderers can represent:
+
+- coordinates, sizes and distances at most ``MAX_COORDINATE`` (1e7) in magnitude: vertices are
+  float32, whose step is already one unit at 1e7;
+- sizes, radii, heights and scales > 0 (a zero scale flattens an object to nothing);
+- ``camera.far / camera.near`` at most ``MAX_DEPTH_RATIO`` (2^20): the camera pass writes a
+  24-bit depth buffer cleared to 1 and keeps fragments with depth < 1. A point at distance d
+  lies ``near (far - d) / ((far - near) d)`` below 1 in window depth, so with far/near = R every
+  point nearer than far/2 is at least 2^24 / R steps in front of the cleared depth: 16 at the
+  limit. At near 1e-7, far 1e9 a box 6 units away rounds to 1 and the GL view covers nothing;
+- a scene's triangles at most ``DEFAULT_TRIANGLE_BUDGET`` (1,000,000: about 0.8 GB and a minute
+  per shadow-volume run on 2 cores), or the experiment's ``triangle_budget``;
+- scene names (they name folders under ``--out``) from ``NAME_PATTERN``: letters, digits,
+  ``_``, ``-`` and ``.``, not starting with ``.``, at most 64 characters.
+"""
+
+import re
+
+MAX_COORDINATE = 1e7
+MAX_DEPTH_RATIO = 2 ** 20
+DEFAULT_TRIANGLE_BUDGET = 1_000_000
+# degrees; no one benchmarks a narrower view, and toward 0 the projection's 1 / tan(fov / 2)
+# overflows float32
+MIN_FOV = 0.01
+NAME_PATTERN = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")

@@ -1,0 +1,298 @@
+"""Config's scene schema, above yaml_source and mesh_files: camera, lights, shapes, motion and
+the scene file, and load_scenes, which validates one; experiment_schema builds on its Strict."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
+                      field_validator, model_validator)
+
+from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
+from .mesh_files import _check_mesh
+from .yaml_source import ConfigError, check_name, format_validation_error, key_error, read_yaml
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Size = Annotated[float, Field(gt=0, le=MAX_COORDINATE)]
+Vec3 = tuple[Coordinate, Coordinate, Coordinate]
+
+
+def _field_of_view(value: float) -> float:
+    if not MIN_FOV <= value < 180:
+        raise ValueError(f"must be in [{MIN_FOV}, 180), got {value}")
+    return value
+
+
+FieldOfView = Annotated[float, AfterValidator(_field_of_view)]
+
+
+def square_number(value: int) -> int:
+    """Validate a square sample count (a sqrt(n) x sqrt(n) grid)."""
+    if value < 1 or math.isqrt(value) ** 2 != value:
+        raise ValueError(f"must be a square number (1, 4, 9, 16, 25, ...), got {value}")
+    return value
+
+
+SquareInt = Annotated[int, AfterValidator(square_number)]
+
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def _norm(v) -> float:
+    return float(np.linalg.norm(np.asarray(v, dtype=float)))
+
+
+class Camera(Strict):
+    position: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 0.0, 1.0)
+    yfov: FieldOfView = 60.0
+    near: Size = 0.1
+    far: Size = 100.0
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        if self.far <= self.near:
+            raise ValueError(f"far: must be greater than near ({self.near}), got {self.far}")
+        if self.far / self.near > MAX_DEPTH_RATIO:
+            raise ValueError(f"far: far / near is {self.far / self.near:.3g}; a 24-bit depth "
+                             f"buffer resolves at most {MAX_DEPTH_RATIO} (2^20): raise near or "
+                             "lower far")
+        view = np.subtract(self.target, self.position)
+        if _norm(view) == 0:
+            raise ValueError("target: equals position")
+        if _norm(self.up) == 0:
+            raise ValueError("up: must not be the zero vector")
+        if _norm(np.cross(view / _norm(view), np.asarray(self.up) / _norm(self.up))) < 1e-6:
+            raise ValueError("up: is parallel to the view direction")
+        return self
+
+
+class DirectionalLight(Strict):
+    type: Literal["directional"]
+    direction: Vec3  # the direction light travels
+
+    @field_validator("direction")
+    @classmethod
+    def _nonzero(cls, v):
+        if _norm(v) == 0:
+            raise ValueError("must not be the zero vector")
+        return v
+
+
+class SpotLight(Strict):
+    type: Literal["spot"]
+    position: Vec3
+    target: Vec3
+    fov: FieldOfView = 60.0  # full cone angle in degrees
+
+    @model_validator(mode="after")
+    def _aim(self):
+        if _norm(np.subtract(self.target, self.position)) == 0:
+            raise ValueError("target: equals position")
+        return self
+
+
+Light = Annotated[Union[DirectionalLight, SpotLight], Field(discriminator="type")]
+
+
+class Array(Strict):
+    """Copies of an object on a grid: ``count`` along x, y, z, ``step`` apart."""
+
+    count: tuple[int, int, int] = (1, 1, 1)
+    step: Vec3 = (0.0, 0.0, 0.0)
+
+    @field_validator("count")
+    @classmethod
+    def _count(cls, v):
+        if min(v) < 1 or math.prod(v) > 10000:
+            raise ValueError(f"each count must be >= 1 and their product <= 10000, got {v}")
+        return v
+
+
+class Placed(Strict):
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
+    scale: Union[Size, tuple[Size, Size, Size]] = 1.0
+    array: Array | None = None
+    albedo: float = Field(0.8, ge=0, le=1)
+
+    def triangles(self) -> int:
+        """Triangles of one copy (trimesh's construction of the shape; at most, for a lathe)."""
+        raise NotImplementedError
+
+
+class Plane(Placed):
+    shape: Literal["plane"]
+    size: tuple[Size, Size] = (10.0, 10.0)
+
+    def triangles(self) -> int:
+        return 2
+
+
+class Box(Placed):
+    shape: Literal["box"]
+    size: tuple[Size, Size, Size] = (1.0, 1.0, 1.0)
+
+    def triangles(self) -> int:
+        return 12
+
+
+class Sphere(Placed):
+    shape: Literal["sphere"]
+    radius: Size = 1.0
+    subdivisions: int = Field(3, ge=1, le=5)
+
+    def triangles(self) -> int:
+        return 20 * 4 ** self.subdivisions
+
+
+class Cylinder(Placed):
+    shape: Literal["cylinder"]
+    radius: Size = 0.5
+    height: Size = 1.0
+    sections: int = Field(32, ge=3, le=256)
+
+    def triangles(self) -> int:
+        return 4 * self.sections
+
+
+class Capsule(Placed):
+    shape: Literal["capsule"]
+    radius: Size = 0.25
+    height: Size = 1.0  # between the centres of the two caps
+    sections: int = Field(16, ge=3, le=128)
+
+    def triangles(self) -> int:
+        return 2 * (self.sections + self.sections % 2) ** 2  # trimesh rounds odd counts up
+
+
+class Lathe(Placed):
+    """A solid of revolution about +z from a profile of (radius, z) points, bottom to top."""
+
+    shape: Literal["lathe"]
+    profile: list[tuple[Annotated[float, Field(ge=0, le=MAX_COORDINATE)], Coordinate]]
+    sections: int = Field(24, ge=3, le=256)
+
+    @field_validator("profile")
+    @classmethod
+    def _profile(cls, v):
+        if len(v) < 2:
+            raise ValueError("needs at least two (radius, z) points")
+        if not any(r > 0 for r, _ in v):
+            raise ValueError("needs a radius > 0 (with every radius 0 it is a line, no surface)")
+        return v
+
+    def triangles(self) -> int:
+        return 2 * self.sections * (len(self.profile) - 1)
+
+
+class MeshFile(Placed):
+    shape: Literal["mesh"]
+    path: str
+
+
+SceneObject = Annotated[
+    Union[Plane, Box, Sphere, Cylinder, Capsule, Lathe, MeshFile], Field(discriminator="shape")
+]
+
+
+def check_resolution(size):
+    """An image size (width, height), each in [16, 8192]."""
+    if not all(16 <= x <= 8192 for x in size):
+        raise ValueError(f"width and height must be in [16, 8192], got {list(size)}")
+    return size
+
+
+MAX_ORBIT_DEG = 3600.0  # ten turns: more is a typo, not a path
+MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
+
+
+class Motion(Strict):
+    """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
+    by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
+    light's position and target together) turns about the up axis through the centre of the
+    scene's bounds by ``light_orbit`` degrees, and the camera moves toward its target by the
+    fraction ``camera_dolly`` of its distance (negative: away). Frame t is at t / (frames - 1)
+    of each path, so the first frame is the scene as written and the last ends the paths
+    (harness/motion.py)."""
+
+    frames: int = Field(ge=2, le=1000)
+    camera_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
+    light_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
+    camera_dolly: float = Field(0.0, ge=MIN_DOLLY)
+
+    @field_validator("camera_dolly")
+    @classmethod
+    def _short_of_the_target(cls, v):
+        if v >= 1:
+            raise ValueError(f"must be < 1: a dolly of 1 or more reaches or passes through the "
+                             f"camera's target, got {v}")
+        return v
+
+
+class Scene(Strict):
+    description: str | None = None  # one sentence: what the scene is for (shown, never hashed)
+    resolution: tuple[int, int] = (512, 512)
+    camera: Camera
+    light: Light
+    effects: list[Literal["shadow", "direct"]] = ["shadow"]
+    ambient: float = Field(0.1, ge=0, le=1)
+    objects: list[SceneObject]
+    motion: Motion | None = None  # a still scene without it
+
+    _res = field_validator("resolution")(lambda cls, v: check_resolution(v))
+
+    @field_validator("effects")
+    @classmethod
+    def _effects(cls, v):
+        if "shadow" not in v:
+            raise ValueError("must include 'shadow'")
+        return v
+
+    @field_validator("objects")
+    @classmethod
+    def _objects(cls, v):
+        if not v:
+            raise ValueError("must list at least one object")
+        return v
+
+
+class SceneFile(Strict):
+    scenes: dict[str, Scene]
+
+
+
+def load_scenes(path: str | Path, *,
+                triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET) -> dict[str, Scene]:
+    """Load and validate a scene file; mesh paths are resolved against the file's folder.
+    Each scene's triangles (all copies) must fit ``triangle_budget`` (None: no budget)."""
+    path = Path(path)
+    data, node = read_yaml(path)
+    if isinstance(data, dict) and isinstance(data.get("scenes"), dict):
+        for name in data["scenes"]:
+            try:
+                check_name("scene", name)
+            except ValueError as e:
+                raise key_error(path, node, ("scenes", name), str(e)) from None
+    try:
+        scene_file = SceneFile.model_validate(data)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(path, e, node)) from None
+    for name, scene in scene_file.scenes.items():
+        total = 0
+        for i, obj in enumerate(scene.objects):
+            one = (_check_mesh(path, node, name, i, obj) if isinstance(obj, MeshFile)
+                   else obj.triangles())
+            total += one * math.prod(obj.array.count if obj.array else (1, 1, 1))
+        if triangle_budget is not None and total > triangle_budget:
+            raise key_error(path, node, ("scenes", name, "objects"),
+                            f"{total:,} triangles, more than the budget of {triangle_budget:,} "
+                            "(an experiment may raise it with triangle_budget:)")
+    return scene_file.scenes
