@@ -136,19 +136,15 @@ class SilhouetteMap(Technique):
 
     def draw_edges(self, frame: Frame, program: Program, draw: Callable[[], None]) -> None:
         """Rasterise silhouette quads into the bound silhouette map: ``draw()`` issues them for
-        ``program`` (the edge mesh for the edge program; the tests' CPU-built quads for theirs).
-        The edges are found in the light space of the frame's light."""
-        light = frame.scene.light
-        light_vector = (np.append(-light.direction, 0.0) if light.type == "directional"
-                        else np.append(light.position, 1.0))
+        ``program`` (the edge mesh for the edge program; the tests' CPU-built quads for theirs)."""
         GL.glDisable(GL.GL_DEPTH_TEST)
         GL.glDisable(GL.GL_BLEND)
         GL.glDisable(GL.GL_CULL_FACE)
         program.use()
         program.set(**self.depth_map.lookup_uniforms(0, 0.0, frame))
         program.set(bias=self.params.bias, center_points=self.params.center_points,
-                    model=np.eye(4), light_vector=light_vector, near=self.frustum.near,
-                    silhouette_view=self.frustum.view, silhouette_proj=self.frustum.proj)
+                    near=self.frustum.near, silhouette_proj=self.frustum.proj,
+                    **self.edge_mesh.uniforms(frame.scene.light, self.frustum.view))
         draw()
 
     def _shade(self, frame: Frame, program: Program) -> None:

@@ -72,8 +72,15 @@ class EdgeMesh:
     """Every edge of the scene on the GPU, geometry only, for ``silhouette_edges.vert.glsl``:
     one point per edge (its endpoints, the start and length of its run in the face list), the
     face list (indices of an edge's one, two or, non-manifold, more faces, edge after edge) and
-    each face's normal. Edges come part after part, so a part is a contiguous range of them
-    and its rigid ``model`` transform can be applied in the vertex stage."""
+    each face's normal.
+
+    Positions are stored relative to ``origin``, the centre of the scene's bounds, and the
+    vertex stage works in that frame: :meth:`uniforms` folds ``model`` (today the translation
+    to the origin) into the light view and brings the light into the frame, in float64. So
+    float32 never holds a coordinate as large as the scene's distance from the world origin
+    (hard_far_from_origin, 1e5 away: over half a texel of error in world coordinates). Edges
+    come part after part, so a part is a contiguous range of them: a part's rigid motion later
+    joins ``model`` for that range."""
 
     def __init__(self, adjacency: EdgeAdjacency):
         if len(adjacency.edge_of_half) >= MAX_FACE_REFERENCES:
@@ -82,7 +89,9 @@ class EdgeMesh:
         by_edge = np.argsort(adjacency.edge_of_half, kind="stable")
         edge_faces = adjacency.face_of_half[by_edge].astype(np.uint32)
         first = np.cumsum(adjacency.faces_per_edge) - adjacency.faces_per_edge
-        points = np.concatenate([adjacency.vertices[adjacency.edges].reshape(-1, 6),
+        self.origin = (adjacency.vertices.min(axis=0) + adjacency.vertices.max(axis=0)) / 2
+        local = adjacency.vertices - self.origin
+        points = np.concatenate([local[adjacency.edges].reshape(-1, 6),
                                  first[:, None], adjacency.faces_per_edge[:, None]], axis=1)
         normals = np.zeros((len(adjacency.face_normals), 4), np.float32)
         normals[:, :3] = adjacency.face_normals
@@ -93,6 +102,16 @@ class EdgeMesh:
             GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(data.nbytes, 4), data,
                             GL.GL_STATIC_DRAW)
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def uniforms(self, light: Light, light_view: np.ndarray) -> dict:
+        """``light_view_model`` (``light_view`` after ``model``) and ``light_in_model`` (the
+        light as a homogeneous vector, w = 0 directional, in the mesh's frame)."""
+        model = np.eye(4)
+        model[:3, 3] = self.origin
+        light_vector = (np.append(-light.direction, 0.0) if light.type == "directional"
+                        else np.append(light.position, 1.0))
+        return {"light_view_model": light_view @ model,
+                "light_in_model": np.linalg.solve(model, light_vector)}
 
     def draw(self) -> None:
         for binding, buffer in zip((EDGE_FACES_BINDING, FACE_NORMALS_BINDING), self.buffers):

@@ -10,10 +10,11 @@ layout(location = 2) in vec2 face_run;   // first entry in edge_faces, number of
 layout(std430, binding = EDGE_FACES_BINDING) readonly buffer EdgeFaces { uint edge_faces[]; };
 layout(std430, binding = FACE_NORMALS_BINDING) readonly buffer FaceNormals { vec4 face_normals[]; };
 
-uniform mat4 model;            // the part's rigid placement; parts are built in world space
-uniform vec4 light_vector;     // (toward the light, 0) for a directional light, (position, 1) a spot
-uniform mat4 silhouette_view;  // the silhouette map's light view and projection (without the
-uniform mat4 silhouette_proj;  // depth map's half-texel offset)
+// The edge mesh's frame (EdgeMesh.uniforms): positions relative to its origin, so float32 never
+// holds a coordinate as large as the scene's distance from the world origin.
+uniform mat4 light_view_model;  // the silhouette map's light view (without the depth map's
+uniform mat4 silhouette_proj;   // half-texel offset) after the mesh's model transform
+uniform vec4 light_in_model;    // (toward the light, 0) directional, (position, 1) spot
 uniform float near;
 uniform float map_res;
 
@@ -26,12 +27,11 @@ out EdgeData {
 
 bool is_silhouette(vec3 a) {
     // a lies in the plane of every face around the edge, so it stands for their centroids
-    vec3 to_light = light_vector.xyz - light_vector.w * a;
+    vec3 to_light = light_in_model.xyz - light_in_model.w * a;
     int first = int(face_run.x), faces = int(face_run.y);
     int toward = 0;
     for (int k = 0; k < faces; ++k) {
-        vec3 normal = mat3(model) * face_normals[edge_faces[first + k]].xyz;
-        toward += int(dot(normal, to_light) > 0.0);
+        toward += int(dot(face_normals[edge_faces[first + k]].xyz, to_light) > 0.0);
     }
     return faces == 1 || (toward > 0 && toward < faces);
 }
@@ -42,12 +42,10 @@ vec2 to_texels(vec3 view) {
 }
 
 void main() {
-    vec3 a = (model * vec4(endpoint_a, 1.0)).xyz;
-    vec3 b = (model * vec4(endpoint_b, 1.0)).xyz;
-    vec3 view_a = (silhouette_view * vec4(a, 1.0)).xyz;
-    vec3 view_b = (silhouette_view * vec4(b, 1.0)).xyz;
+    vec3 view_a = (light_view_model * vec4(endpoint_a, 1.0)).xyz;
+    vec3 view_b = (light_view_model * vec4(endpoint_b, 1.0)).xyz;
     float depth_a = -view_a.z, depth_b = -view_b.z;
-    edge.kept = int(is_silhouette(a) && (depth_a >= near || depth_b >= near));
+    edge.kept = int(is_silhouette(endpoint_a) && (depth_a >= near || depth_b >= near));
     if (depth_a < near) {
         view_a += (near - depth_a) / (depth_b - depth_a) * (view_b - view_a);
         depth_a = near;
