@@ -24,7 +24,23 @@ from harness import config
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE_FILES = (ROOT / "scenes.yaml", ROOT / "experiments" / "hard_cases" / "scenes.yaml")
+# No shipped scene has a silhouette crossing the light's near plane: here a spot light hangs
+# beside a box taller than itself, whose vertical silhouette edges reach behind the light.
+NEAR_PLANE_SCENE = "spot_beside_tall_box"
+NEAR_PLANE_YAML = f"""
+scenes:
+  {NEAR_PLANE_SCENE}:
+    resolution: [96, 96]
+    camera: {{position: [0, -7, 6], target: [0, 0, 0], up: [0, 0, 1], yfov: 60, near: 0.1, far: 50}}
+    light: {{type: spot, position: [0, 0, 2.5], target: [0, 0, 0], fov: 120}}
+    effects: [shadow]
+    objects:
+      - {{shape: plane, size: [10, 10]}}
+      - {{shape: box, size: [1, 1, 4], translate: [1.5, 0, 2]}}
+      - {{shape: box, size: [0.6, 0.6, 0.6], translate: [-0.3, 0.2, 1]}}
+"""
 SCENES = [(path, name) for path in SCENE_FILES for name in config.load_scenes(path)]
+SCENES.append((None, NEAR_PLANE_SCENE))
 MAP_RES = 1024  # the technique's default
 IMAGE_PX = 96
 # float32 spacing of map coordinates in [res/2, res): the projection's rounding unit
@@ -59,12 +75,19 @@ def oracle_map_and_visibility(frame, technique):
         program.release()
 
 
+@pytest.fixture(scope="module")
+def near_plane_scene_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("silhouette_gpu") / "scenes.yaml"
+    path.write_text(NEAR_PLANE_YAML)
+    return path
+
+
 @pytest.mark.parametrize("path, name", SCENES, ids=[name for _, name in SCENES])
-def test_gpu_silhouette_map_equals_numpy_map(gl_context, path, name):
+def test_gpu_silhouette_map_equals_numpy_map(gl_context, near_plane_scene_file, path, name):
     """The map the GPU edge pass builds equals the NumPy oracle's: same edge count, same
     stored texels, points within the projection's rounding, V equal but for a few pixels.
     Catches: boundary edges of open meshes dropped (box_plane's plane border, the open hard
-    cases), the near-plane clip dropped (hard_spot_close), a quad narrower or shorter than
+    cases), the near-plane clip dropped (spot_beside_tall_box), a quad narrower or shorter than
     QUAD_HALF_WIDTH, the facing test on the wrong light (spot: direction for position), and
     positions kept in world coordinates in float32 (hard_far_from_origin: 2245 texels
     differ)."""
@@ -72,7 +95,7 @@ def test_gpu_silhouette_map_equals_numpy_map(gl_context, path, name):
     from harness.technique import Frame, reset_gl_state
     from techniques.silhouette import SilhouetteMap
 
-    scene = load_scene(name, path).with_resolution(IMAGE_PX, IMAGE_PX)
+    scene = load_scene(name, path or near_plane_scene_file).with_resolution(IMAGE_PX, IMAGE_PX)
     frame = Frame(scene)
     technique = SilhouetteMap(SilhouetteMap.Params(res=MAP_RES))
     try:
