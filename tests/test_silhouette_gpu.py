@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from harness import config
+from test_silhouette import rendered
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE_FILES = (ROOT / "scenes.yaml", ROOT / "experiments" / "hard_cases" / "scenes.yaml")
@@ -92,25 +93,12 @@ def test_gpu_silhouette_map_equals_numpy_map(gl_context, near_plane_scene_file, 
     positions kept in world coordinates in float32 (hard_far_from_origin: 2245 texels
     differ)."""
     from harness.scene import load_scene
-    from harness.technique import Frame, reset_gl_state
-    from techniques.silhouette import SilhouetteMap
 
     scene = load_scene(name, path or near_plane_scene_file).with_resolution(IMAGE_PX, IMAGE_PX)
-    frame = Frame(scene)
-    technique = SilhouetteMap(SilhouetteMap.Params(res=MAP_RES))
-    try:
-        technique.prepare(frame)
-        technique.update(frame)
-        frame.meter.new_frame(measuring=True)
-        output = technique.render(frame)
+    with rendered(scene, res=MAP_RES) as (frame, technique, output):
         gpu = technique.silhouette_points()
         edges, cpu, cpu_visibility = oracle_map_and_visibility(frame, technique)
         covered = int(np.count_nonzero(frame.arrays.covered))
-    finally:
-        technique.release()
-        frame.release()
-        reset_gl_state()
-
     assert technique.edge_count == edges
     stored_gpu, stored_cpu = np.any(gpu != 0.5, axis=2), np.any(cpu != 0.5, axis=2)
     assert stored_cpu.any()
@@ -125,8 +113,6 @@ def test_edge_pass_runs_one_vertex_per_scene_edge(scene_at, gl_context, monkeypa
     """The timed silhouette_map pass runs the vertex stage once per edge of the scene (the GPU
     decides which are silhouettes) and the NumPy edge search is never called. Catches: the
     edge search moved back to NumPy (6 vertices per silhouette edge, uploaded each frame)."""
-    from harness.technique import Frame, reset_gl_state
-    from techniques.silhouette import SilhouetteMap
     from techniques.silhouette_edges import EdgeAdjacency
 
     scene = scene_at("castle", 64)
@@ -136,24 +122,10 @@ def test_edge_pass_runs_one_vertex_per_scene_edge(scene_at, gl_context, monkeypa
         raise AssertionError("the NumPy edge search ran")
 
     monkeypatch.setattr(EdgeAdjacency, "silhouette", numpy_search)
-    frame = Frame(scene)
-    if frame.counters_missing:
-        frame.release()
-        pytest.skip(frame.counters_missing)
-    technique = SilhouetteMap(SilhouetteMap.Params(res=256))
-    meter = frame.new_meter()
-    try:
-        technique.prepare(frame)
-        with frame.metered(meter):
-            technique.update(frame)
-            meter.new_frame(measuring=True)
-            technique.render(frame)
-        stats = {p.name: p for p in meter.passes()}
-    finally:
-        technique.release()
-        meter.release()
-        frame.release()
-        reset_gl_state()
+    with rendered(scene, res=256) as (frame, technique, _):
+        if frame.counters_missing:
+            pytest.skip(frame.counters_missing)
+        stats = {p.name: p for p in frame.meter.passes()}
     assert stats["silhouette_map"].vertex_invocations == edges == 2111
     assert 0 < technique.edge_count < edges
 
@@ -164,23 +136,10 @@ def test_atomic_counters_only_in_untimed_repeat(scene_at, gl_context):
     timed shading pass."""
     from OpenGL import GL
 
-    from harness.technique import Frame, reset_gl_state
-    from techniques.silhouette import SilhouetteMap
-
-    frame = Frame(scene_at("box_plane", 64))
-    technique = SilhouetteMap(SilhouetteMap.Params(res=64))
-    try:
-        technique.prepare(frame)
-        technique.update(frame)
-        frame.meter.new_frame(measuring=True)
-        technique.render(frame)
+    with rendered(scene_at("box_plane", 64), res=64) as (frame, technique, _):
         counters = [GL.glGetProgramiv(program.id, GL.GL_ACTIVE_ATOMIC_COUNTER_BUFFERS)
                     for program in (technique.shading, technique.counting_shading)]
-        shaded, _ = technique.counted_pixels
         covered = np.count_nonzero(frame.arrays.covered)
-    finally:
-        technique.release()
-        frame.release()
-        reset_gl_state()
+    shaded, _ = technique.counted_pixels
     assert counters == [0, 1]
     assert shaded == covered > 0
