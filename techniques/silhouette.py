@@ -55,9 +55,9 @@ class SilhouetteMap(Technique):
       projects them, clipped to the light's near plane, the geometry stage emits each one's
       thin quad, and the fragment stage fills a RG32F map of one point per texel (texel-local
       [0,1]^2, empty texels hold the centre): endpoint in the texel, else the diagonal
-      intersections (one: it, two: their
-      midpoint, none: discard), enlarged near corners and clamped; points farther from the
-      light than all four corner depths (minus ``bias``) are discarded as hidden;
+      intersections (one: it, two: their midpoint, none: discard), enlarged near corners and
+      clamped; points farther from the light than all four corner depths (minus ``bias``) are
+      discarded as hidden;
     * ``shading``: four corner depth tests; where they disagree, the skewed-quadrant
       reconstruction from the texel's point and its four neighbours' (eight line tests).
 
@@ -74,10 +74,9 @@ class SilhouetteMap(Technique):
     counted by atomic counters in an untimed repeat of the shading pass), ``model_bytes_per_px``
     (4 + 24 P, the paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges`` (the
     quads the edge pass emits, counted in an untimed repeat with the rasterizer off). The
-    paper's P divides
-    its silhouette fill by the scene fill (forward shading: every fragment drawn, overdraw
-    included); ``sil_pct`` divides by the covered pixels, each shaded once in the deferred
-    pass, so the two agree only where the scene has no overdraw.
+    paper's P divides its silhouette fill by the scene fill (forward shading: every fragment
+    drawn, overdraw included); ``sil_pct`` divides by the covered pixels, each shaded once in
+    the deferred pass, so the two agree only where the scene has no overdraw.
     ``fetches_per_px`` = 4 + 5 P; ``mem_bytes`` = depth map (with its depth buffer) +
     silhouette map.
 
