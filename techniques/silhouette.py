@@ -209,6 +209,9 @@ class SilhouetteMap(Technique):
         return np.ascontiguousarray(self.silhouette_fbo.read(0)[::-1])
 
     def release(self) -> None:
+        # Mesa 22.3 (llvmpipe) keeps a program that draws after a geometry-shader program alive
+        # past its deletion, until a geometry-shader program is bound again (a leaked program)
+        self.map_program.use()
         for resource in (self.depth_map, self.silhouette_fbo, self.edge_mesh, self.map_program,
                          self.shading, self.counting_shading):
             resource.release()
