@@ -73,7 +73,8 @@ def test_a_run_scores_the_plugin_beside_sm(plugin_env, tmp_path):
     edge_mae within 10% of edge_floor (the reference rounded to 0/1: 0.0298 against 0.0313).
     Fractional V in the edge band (levels > 2) shows the GL_LINEAR comparison acting: with
     GL_NEAREST the map gives sm's two levels. The normal offset keeps the plane free of acne
-    at the defaults (acne_pct 0)."""
+    at the defaults (acne_pct 0). Catches the comparison unfiltered (GL_NEAREST: 2 levels) and
+    the normal offset lost (0 texels: acne, mae 0.18)."""
     experiment = tmp_path / "plugin.yaml"
     experiment.write_text(EXPERIMENT)
     out = tmp_path / "out"

@@ -21,7 +21,11 @@ class HardwarePCF(Technique):
     bias the point moves along its normal by ``normal_offset`` map texels before it is
     projected (the normal-offset bias), which keeps a plane lit at every angle to the light
     from 1.5 texels up (``hardware_pcf.frag.glsl`` says why), and ``bias`` scene units toward
-    the light for the depth buffer's rounding.
+    the light for the depth buffer's rounding. What the offset costs: it moves the lookup up to
+    1.5 texels sideways, so shadows shift (sphere_plane at 512 px, map 1024: edge_mae 0.071,
+    sm 0.044), and an offset along one plane's normal does not describe a concave contact,
+    where castle's walls meet its floor: acne_pct 0.13 and leak_pct 0.036 there at 512 px
+    (sm 0.003 and 0.0007).
 
     =================  ============================================  =======  ===========
     Parameter          Meaning                                       Default  Range
