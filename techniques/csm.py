@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -15,7 +16,7 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, NotApplicable, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from .shadowmap import LightDepthMap, depth_precision
+from .shadowmap import EMPTY_DEPTH, LightDepthMap, depth_precision
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay
@@ -59,10 +60,20 @@ class Cascade:
     texel_world: float  # the longer side of a texel in world units (the same everywhere)
 
 
+def light_rotation(light_direction) -> np.ndarray:
+    """World -> the light's rigid basis (no translation; -z: the light's travel), fixed by the
+    light's direction alone."""
+    d = np.asarray(light_direction, np.float64)
+    d = d / np.linalg.norm(d)
+    return look_at(np.zeros(3), d, any_perpendicular_up(d))
+
+
 def fit_cascade(corners: np.ndarray, light_direction, bounds: np.ndarray, res: int,
-                stabilize: bool, near: float, far: float) -> Cascade:
+                stabilize: bool, near: float, far: float,
+                receivers: tuple[np.ndarray, np.ndarray] | None = None) -> Cascade:
     """An orthographic light frustum over the slice with ``corners``, deep enough for every
-    caster in the scene ``bounds``.
+    caster in the scene ``bounds``; unstabilised, over ``receivers`` instead where given (the
+    low and high x, y of the slice's visible receivers in :func:`light_rotation`'s basis).
 
     Stabilised, it is the square round the slice's bounding sphere (centred on the corners'
     mean; its radius rounded up by :func:`stable_radius`) with its centre snapped to whole
@@ -70,10 +81,7 @@ def fit_cascade(corners: np.ndarray, light_direction, bounds: np.ndarray, res: i
     shifts the map by whole texels, so every world point keeps its texel and its depth test.
     Otherwise it is the light-space box of the corners, the tightest fit, which slides and
     stretches under the texel grid with every camera change."""
-    light_direction = np.asarray(light_direction, np.float64)
-    light_direction = light_direction / np.linalg.norm(light_direction)
-    rotation = look_at(np.zeros(3), light_direction, any_perpendicular_up(light_direction))
-    local = corners @ rotation[:3, :3].T
+    rotation = light_rotation(light_direction)
     if stabilize:
         centre = corners.mean(axis=0)
         radius = stable_radius(float(np.linalg.norm(corners - centre, axis=1).max()))
@@ -81,9 +89,14 @@ def fit_cascade(corners: np.ndarray, light_direction, bounds: np.ndarray, res: i
         texel = 2 * radius / res
         middle = np.round((rotation[:2, :3] @ centre) / texel) * texel
     else:
-        lo, hi = local[:, :2].min(axis=0), local[:, :2].max(axis=0)
-        half = (hi - lo) / 2 * (1 + FIT_MARGIN) + 1e-9
+        if receivers is None:
+            local = corners @ rotation[:2, :3].T
+            lo, hi = local.min(axis=0), local.max(axis=0)
+        else:
+            lo, hi = receivers
         middle = (lo + hi) / 2
+        # float32 receivers: a few units in the last place of their coordinates
+        half = (hi - lo) / 2 * (1 + FIT_MARGIN) + 1e-5 * (1 + np.abs(middle).max())
     # depth along the light from just before the scene's first caster to past its last surface,
     # fixed by the scene alone, so the stored depths do not move with the camera either
     depth = -(box_corners(bounds) @ rotation[2, :3])
@@ -124,10 +137,13 @@ class CascadedShadowMap(Technique):
     The slices run from n to f by the practical split scheme (:func:`split_depths`). With
     ``fit: frustum`` n and f are the camera's near and far planes (PSSM); with ``fit: sdsm``
     they are the nearest and farthest view depth of the visible pixels, from a GPU reduction
-    over the G-buffer (Lauritzen et al.'s sample distribution, its depth range). ``stabilize``
-    fits each cascade to its slice's bounding sphere and snaps it to whole texels
-    (:func:`fit_cascade`): the map does not shimmer when the camera moves or turns, at the
-    price of a larger texel. Directional lights only: a spot light has one frustum already.
+    over the G-buffer, and each cascade covers, across the light, just the visible receivers
+    of its slice, from one more reduction per cascade (Lauritzen et al.'s sample distribution:
+    its depth range and tight light-space bounds); otherwise a cascade covers its slice of the
+    view frustum. ``stabilize`` fits each cascade to its slice's bounding sphere instead and
+    snaps it to whole texels (:func:`fit_cascade`): the map does not shimmer when the camera
+    moves or turns, at the price of a larger texel (under sdsm the slices still follow the
+    visible depth range). Directional lights only: a spot light has one frustum already.
 
     Bias: ``shadow_map.glsl``'s rule (``bias`` plus ``slope_bias`` times the receiver plane's
     depth slope per texel times the distance to the texel read), in each cascade's own texels.
@@ -142,8 +158,9 @@ class CascadedShadowMap(Technique):
     ``splits``      cascades                                          4         1 .. 4
     ``lambda``      logarithmic share of the split scheme (0 uniform  0.5       0 .. 1
                     slices, 1 logarithmic)
-    ``fit``         depth range split: ``frustum`` (near to far) or   frustum   frustum, sdsm
-                    ``sdsm`` (the visible depths, GPU reduction)
+    ``fit``         ``frustum``: near to far, slices of the view      frustum   frustum, sdsm
+                    frustum; ``sdsm``: the visible depths and each
+                    slice's visible receivers (GPU reductions)
     ``stabilize``   bounding-sphere cascades snapped to whole texels  false     true, false
     ``bias``        constant depth bias, scene units                  0.02      >= 0
     ``slope_bias``  times the receiver plane's depth slope x the      1.0       >= 0
@@ -165,7 +182,10 @@ class CascadedShadowMap(Technique):
                                 "one frustum")
         p = self.params
         self.maps = [LightDepthMap(frame, p.res) for _ in range(p.splits)]
-        self.reduction = CoveredRange() if p.fit == "sdsm" else None
+        sdsm = p.fit == "sdsm"
+        self.reduction = CoveredRange() if sdsm else None
+        self.bounds = CoveredRange(Path(__file__).parent / "csm_bounds.comp.glsl") \
+            if sdsm and not p.stabilize else None
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl",
                                         "csm_shading.frag.glsl")
 
@@ -186,16 +206,37 @@ class CascadedShadowMap(Technique):
         near = max(low - pad, float(camera.near))
         return near, max(high + pad, near * (1 + 1e-6))
 
+    def receiver_bounds(self, frame: Frame, splits: np.ndarray) -> list:
+        """Per cascade, the light-space x, y range of the visible receivers it shades (None for
+        one that shades none), measured on the GPU; all None without tight bounds."""
+        if self.bounds is None:
+            return [None] * (len(splits) - 1)
+        rotation = light_rotation(frame.scene.light.direction)
+        # the shader's choice: the first slice reaching a pixel's depth, the last beyond all
+        ends = [-EMPTY_DEPTH, *splits[1:-1], EMPTY_DEPTH]
+        found = []
+        with frame.measure("cascade_bounds"):
+            for d0, d1 in zip(ends[:-1], ends[1:]):
+                r = self.bounds.reduce(frame.gbuffer.position_texture,
+                                       frame.gbuffer.normal_texture,
+                                       camera_view=frame.camera.view, light_rotation=rotation,
+                                       slice_near=d0, slice_far=d1)
+                found.append(None if r.empty else (r.low[:2].astype(np.float64),
+                                                   r.high[:2].astype(np.float64)))
+        return found
+
     def update(self, frame: Frame) -> None:
         p = self.params
         near, far = self.depth_range(frame)
+        splits = split_depths(near, far, p.splits, getattr(p, "lambda"))
+        receivers = self.receiver_bounds(frame, splits)
         with frame.measure("cascade_fit"):
-            self.splits = split_depths(near, far, p.splits, getattr(p, "lambda"))
+            self.splits = splits
             light = frame.scene.light.direction
             self.cascades = [
                 fit_cascade(slice_corners(frame.camera.view, frame.camera.proj, d0, d1), light,
-                            frame.scene.bounds, p.res, p.stabilize, d0, d1)
-                for d0, d1 in zip(self.splits[:-1], self.splits[1:])]
+                            frame.scene.bounds, p.res, p.stabilize, d0, d1, bounds)
+                for d0, d1, bounds in zip(splits[:-1], splits[1:], receivers)]
             for cascade, light_map in zip(self.cascades, self.maps):
                 light_map.frustum = cascade.frustum
 
@@ -239,7 +280,7 @@ class CascadedShadowMap(Technique):
         # prepare may have stopped early (not applicable, a failed compile)
         for light_map in self.__dict__.pop("maps", []):
             light_map.release()
-        for name in ("reduction", "shading"):
+        for name in ("reduction", "bounds", "shading"):
             resource = self.__dict__.pop(name, None)
             if resource is not None:
                 resource.release()
