@@ -79,8 +79,8 @@ def fit_cascade(corners: np.ndarray, light_direction, bounds: np.ndarray, res: i
     mean; its radius rounded up by :func:`stable_radius`) with its centre snapped to whole
     texels of the light's fixed rotation: while the radius stays, a camera move or turn only
     shifts the map by whole texels, so every world point keeps its texel and its depth test.
-    Otherwise it is the light-space box of the corners, the tightest fit, which slides and
-    stretches under the texel grid with every camera change."""
+    Otherwise it is the light-space box of the corners (of the receivers), the tightest fit,
+    which slides and stretches under the texel grid with every camera change."""
     rotation = light_rotation(light_direction)
     if stabilize:
         centre = corners.mean(axis=0)
