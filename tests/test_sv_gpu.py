@@ -30,7 +30,10 @@ GPU_COMBOS = [{"method": "zfail"}, {"method": "zpass"}, {"method": "nearclip"},
 # the same with every part made per-triangle volumes: all of them drawn by the geometry shader
 POLYGON_COMBOS = [{"method": "zfail", "volumes": "polygon"},
                   {"method": "zpass", "volumes": "polygon"},
-                  {"buffer": "alpha", "method": "zfail", "volumes": "polygon"}]
+                  {"buffer": "alpha", "method": "zfail", "volumes": "polygon"},
+                  # max's counter starts at 1, where a decrement drawn first is lost
+                  {"buffer": "screen", "normalize": "max", "method": "zpass",
+                   "volumes": "polygon"}]
 # Where V or the fill count differ, in pixels / fragments at 160x160 (measured; all other
 # scenes and combinations are equal). The triangles are equal: each is in a scene that has
 # both silhouette volumes (drawn by the vertex shader) and per-triangle volumes (drawn by the
