@@ -77,6 +77,15 @@ class ShadowVolumes(Technique):
     of the screen size" took 10.2 to 23.6 Hz at 1024^2, beyond its half-resolution 15.7 Hz,
     so a quarter along each axis).
 
+    The volumes are extruded on the GPU every frame, inside the timed ``volumes`` pass, from
+    geometry uploaded in ``prepare`` (``sv_gpu``: each closed mesh's edges as degenerate quads
+    with both faces' planes, McGuire et al. 2003; per-triangle volumes by a geometry shader),
+    so a still scene and a moving light pay the same passes. The near-plane clip polygons are
+    computed on the CPU in that pass, every frame; nearclip in the alpha and screen buffers
+    builds all its volumes there on the CPU (``sv_cpu``), since the GPU volumes cannot put a
+    volume's clip polygons between its increments and its decrements. The normalisation
+    rectangles and the visibility pass shade covered pixels only.
+
     Volume fragments are counted untimed, with the depth test off, whenever the light or the
     camera moved (once on a still scene): they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
