@@ -41,9 +41,12 @@ EQUAL_ERROR_COLUMNS = ["scene", "triangles", "cost_a", "setting_a", "cost_b", "s
 
 
 def size_band(df: pd.DataFrame) -> pd.Series:
-    """Each row's size band (a label of ``SIZE_BANDS``) from its ``triangles``; rows without a
-    positive count (results from before it was recorded) are ``UNKNOWN_SIZE``."""
+    """Each row's size band (a label of ``SIZE_BANDS``) from its scene's ``triangles`` (the
+    largest count its rows hold, so a failed run that counted none joins its scene); scenes
+    without a positive count (results from before it was recorded) are ``UNKNOWN_SIZE``."""
     triangles = _positive(df, "triangles")
+    if "scene" in df.columns:
+        triangles = triangles.groupby(df["scene"]).transform("max")
     band = pd.Series(UNKNOWN_SIZE, index=df.index, dtype=object)
     for label, low, high in SIZE_BANDS:
         band[(triangles >= low) & (triangles < high)] = label
