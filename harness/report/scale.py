@@ -1,12 +1,14 @@
 """The Scale view, shown when the results hold family scenes (the scale experiment's, each size a
-scene of its own): per family, each technique's cost at equal error against triangles (log-log),
-the exponents of its cost (:func:`harness.scaling.scaling`), the cost-accuracy fronts per size,
-and the crossover table (:func:`harness.scaling.crossover`): each technique against the baseline,
-and sv against sm."""
+scene of its own): per family, each technique's cost at equal error and at its defaults against
+triangles (log-log), the exponents of its cost (:func:`harness.scaling.scaling`), the
+cost-accuracy fronts per size, and the crossover table (:func:`harness.scaling.crossover`): each
+technique against the baseline, and sv against sm."""
 
 from __future__ import annotations
 
-from .. import analysis, scaling
+import json
+
+from .. import analysis, registry, scaling
 from . import plots
 
 LEVEL = 1.5  # equal error: edge_mae within 1.5 x edge_floor, the level of the scenes' picks
@@ -24,7 +26,7 @@ def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict |
     one_size = len({(w, h) for (_, w, h), _ in groups}) == 1
     titled = [(family if one_size else f"{family} {plots.size_label(w, h)}", g)
               for (family, w, h), g in groups]
-    return {"level": LEVEL, "cost_chart": cost_chart(titled, colours),
+    return {"level": LEVEL, "cost_charts": cost_charts(titled, colours),
             "exponents": exponent_rows(rows, colours),
             "fronts": [{"title": title, "id": f"scale-front-{i}", "chart": front_chart(g, colours)}
                        for i, (title, g) in enumerate(titled)],
@@ -36,29 +38,56 @@ def triangles_label(triangles: float) -> str:
     return f"{triangles:,.0f}"
 
 
-def cost_chart(titled, colours: dict[str, str]) -> dict:
-    """A panel per family: per technique, its cheapest time within LEVEL x edge_floor at each
-    size, against the size's triangles."""
+def cost_charts(titled, colours: dict[str, str]) -> list[dict]:
+    """Time against triangles, a panel per family and a line per technique: at equal error (its
+    cheapest run within LEVEL x edge_floor at each size) and at its default parameters."""
+    return [
+        {"id": "scale-cost", "title": "Time at equal error against triangles",
+         "chart": _against_triangles(titled, colours, _cheapest_within_level,
+                                     "time per frame (ms) of the cheapest run with edge_mae ≤ "
+                                     f"{LEVEL:g} × edge_floor"),
+         "explain": "A technique missing at a size reaches the level with none of its runs "
+                    "there."},
+        {"id": "scale-defaults", "title": "Time at the default parameters against triangles",
+         "chart": _against_triangles(titled, colours, _at_defaults,
+                                     "time per frame (ms) at the technique's defaults"),
+         "explain": "Each technique as it comes, whatever its error."}]
+
+
+def _against_triangles(titled, colours: dict[str, str], pick, y_title: str) -> dict:
+    """A chart of the runs ``pick(rows)`` chooses (scene, technique, time_ms, setting) in each
+    family, a line per technique against the scene's triangles."""
     facets = []
     for title, g in titled:
-        cheapest = analysis.cheapest_at_error(g, multiples=(LEVEL,), wrong_pct=())
-        met = cheapest[cheapest["met"].astype(bool)]
         triangles = g.groupby("scene")["triangles"].median()
+        chosen = pick(g)
         series = []
-        for technique, t in met.groupby("technique", sort=True):
+        for technique, t in chosen.groupby("technique", sort=True):
             t = t.assign(triangles=t["scene"].map(triangles)).sort_values("triangles")
             series.append({"name": technique, "group": technique, "colour": colours[technique],
                            "points": [{"x": float(n), "y": float(ms),
-                                       "tip": f"{technique} {setting or ''}\n{title}, "
+                                       "tip": f"{technique} {setting}\n{title}, "
                                               f"{triangles_label(n)} triangles\n{ms:.4g} ms"}
                                       for n, ms, setting in zip(t["triangles"], t["time_ms"],
                                                                 t["setting"])]})
         facets.append({"title": title, "series": series})
     techniques = sorted({s["group"] for f in facets for s in f["series"]})
     return {"facets": facets, "legend": [{"name": t, "colour": colours[t]} for t in techniques],
-            "x": {"title": "triangles", "log": True},
-            "y": {"title": f"time per frame (ms) of the cheapest run with edge_mae ≤ {LEVEL:g} × "
-                           "edge_floor", "log": True}}
+            "x": {"title": "triangles", "log": True}, "y": {"title": y_title, "log": True}}
+
+
+def _cheapest_within_level(g):
+    cheapest = analysis.cheapest_at_error(g, multiples=(LEVEL,), wrong_pct=())
+    met = cheapest[cheapest["met"].astype(bool)]
+    return met.assign(setting=met["setting"].fillna(""))
+
+
+def _at_defaults(g):
+    defaults = {t: json.dumps(registry.get(t).Params().model_dump(mode="json"), sort_keys=True)
+                for t in set(g["technique"])}
+    keep = [json.dumps(p, sort_keys=True) == defaults[t]
+            for t, p in zip(g["technique"], g["params"])]
+    return g[keep].assign(setting="at its defaults")
 
 
 def exponent_rows(rows, colours: dict[str, str]) -> list[dict]:
