@@ -125,6 +125,8 @@ def equal_error_costs(df: pd.DataFrame, a: str, b: str, *, level: float = 1.5,
     if not level > 0:
         raise ValueError(f"level must be a positive multiple of edge_floor, not {level}")
     rows = family_rows(df)
+    if rows.empty:
+        return pd.DataFrame(columns=EQUAL_ERROR_COLUMNS)
     groups = sorted({(f, int(w), int(h)) for f, w, h in
                      zip(rows["family"], rows["width"], rows["height"])})
     if len(groups) > 1:
@@ -165,10 +167,11 @@ def crossover(df: pd.DataFrame, a: str, b: str, **options) -> Crossing | None:
     The crossing lies between the last size where a costs at most b and the next, provided a
     costs more at every size after it; log10 of the ratio is interpolated linearly in log10 of
     triangles to where it is 0 (a ratio of exactly 1 at the lower size is the crossing). None
-    when a costs more at every size, at none from some size on, or the two share fewer than
-    two sizes: they do not cross within the sizes run."""
+    when a costs more at every size, when it costs at most b's at the largest size, or when the
+    two share fewer than two sizes: they do not cross within the sizes run."""
     costs = equal_error_costs(df, a, b, **options)
-    costs = costs[np.isfinite(costs["ratio"]) & (costs["ratio"] > 0)].reset_index(drop=True)
+    ratios = costs["ratio"].astype(float)
+    costs = costs[np.isfinite(ratios) & (ratios > 0)].reset_index(drop=True)
     at_most = np.flatnonzero(costs["ratio"].to_numpy() <= 1)
     if not len(at_most) or at_most[-1] == len(costs) - 1:
         return None

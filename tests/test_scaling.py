@@ -115,15 +115,17 @@ def test_crossover_interpolates_in_log_log_between_the_bracketing_sizes():
 
 def test_crossover_is_none_without_a_lasting_crossing_and_refuses_mixed_families():
     """sv dearer again after a dip (ratios 2, 0.5, 2, 0.5 ... ends cheaper): None; a ratio of
-    exactly 1 at 10^4 then 2: the crossing is 10^4. Rows of two families: ValueError naming
-    them. Catches: a crossing reported while a is cheaper at the largest size, an off-by-one
-    at equality, sizes of different families interpolated together."""
+    exactly 1 at 10^4 then 2: the crossing is 10^4. Results without a family column: None.
+    Rows of two families: ValueError naming them. Catches: a crossing reported while a is
+    cheaper at the largest size, an off-by-one at equality, a KeyError on ordinary results,
+    sizes of different families interpolated together."""
     def pair(ratios):
         return pd.DataFrame([r for t, q in zip((1e3, 1e4, 1e5, 1e6), ratios) for r in (
             family_run("sm", t, 1.0), family_run("sv", t, q))])
 
     assert scaling.crossover(pair([2, 0.5, 2, 0.5]), "sv", "sm") is None
     assert scaling.crossover(pair([0.5, 1, 2, 3]), "sv", "sm").triangles == pytest.approx(1e4)
+    assert scaling.crossover(pair([0.5, 2, 3, 4]).drop(columns="family"), "sv", "sm") is None
     mixed = pd.concat([pair([1, 2, 3, 4]), pair([1, 2, 3, 4]).assign(family="foliage")])
     with pytest.raises(ValueError, match="arch 256x256, foliage 256x256"):
         scaling.crossover(mixed, "sv", "sm")
