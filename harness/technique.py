@@ -76,9 +76,24 @@ class Technique:
     # The technique whose cost the others' is divided by at equal error (analysis.summary, the
     # dashboard's overview): one registered technique says so, the harness names none.
     baseline: ClassVar[bool] = False
+    # Light types (harness.scene.Light.type) the technique does not render, each with the
+    # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
+    # ``prepare``). A point light shines every way, so a technique built on one light frustum
+    # declines it unless it says otherwise (``declines_lights = {}``).
+    declines_lights: ClassVar[dict[str, str]] = {
+        "point": "it declares no point-light path (a point light shines every way, past any "
+                 "one light frustum)"}
 
     def __init__(self, params: TechniqueParams):
         self.params = params
+
+    @classmethod
+    def check_light(cls, light) -> None:
+        """Raise :class:`NotApplicable` naming the reason when the technique declines the
+        type of ``light`` (a :class:`harness.scene.Light`)."""
+        reason = cls.declines_lights.get(light.type)
+        if reason:
+            raise NotApplicable(f"{cls.name} does not treat a {light.type} light: {reason}")
 
     def prepare(self, frame: "Frame") -> None:
         """Allocate GL resources and upload what depends on geometry."""

@@ -64,6 +64,7 @@ class PercentageCloserFiltering(Technique):
     # quality knobs: the map size (factor-4 steps keep make bench within its 10 minutes), and
     # the samples
     quality_knobs = {"res": (256, 1024, 4096), "k": (1, 4, 16, 36)}
+    declines_lights = {}  # a point light gets a cube map: six faces
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

@@ -20,8 +20,14 @@
 // precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
 // rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
 // matters far from the origin.
+#ifdef CUBE_FACES
+#include "cube_faces.glsl"
+#else
 uniform sampler2D shadow_map;
 uniform mat4 light_view;
+void choose_face(vec3 world) {}  // one map serves every point
+float map_depth(ivec2 cell) { return texelFetch(shadow_map, cell, 0).r; }
+#endif
 uniform mat4 light_proj;
 uniform float map_res;
 uniform bool light_is_ortho;
@@ -61,6 +67,7 @@ LightSample to_light(vec3 world) {
 // (orthographic, perspective, warped): depth is affine in world space, the map position
 // projective.
 Receiver receiver(vec3 world, vec3 normal) {
+    choose_face(world);  // the point's face serves every read of its receiver plane
     LightSample s = to_light(world);
     Receiver r;
     r.texel = s.texel;
@@ -111,7 +118,7 @@ bool map_cell(vec2 texel, out ivec2 cell) {
 float depth_test(vec2 texel, float depth, float bias) {
     ivec2 t;
     if (!map_cell(texel, t)) return 1.0;
-    return depth - bias - depth_precision > texelFetch(shadow_map, t, 0).r ? 0.0 : 1.0;
+    return depth - bias - depth_precision > map_depth(t) ? 0.0 : 1.0;
 }
 
 // Williams' test of the receiver against the texel holding map position `at`, with the

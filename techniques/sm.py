@@ -38,6 +38,7 @@ class ShadowMap(Technique):
     quality_knobs = {"res": (256, 1024, 4096)}
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
+    declines_lights = {}  # a point light gets a cube map: six faces
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
