@@ -2,9 +2,9 @@
 // one array, each a linear-depth map along its own axis (harness.transforms.cube_faces). A
 // shaded point takes the face its direction from the light falls in, by the largest
 // component; that face's view then stands for light_view in every lookup and bias of the
-// point, so the bias rule is the one of a single map, per face texel. The faces are a little
-// wider than 90 degrees: a percentage-closer sample up to the guard band past the face's edge
-// still reads real depths of that face instead of falling off it.
+// point, so the bias rule is the one of a single map, per face texel. For pcf the faces are
+// wider than 90 degrees by a guard band (map_res is then the whole face): a percentage-closer
+// sample past the face's own edge still reads real depths of that face instead of falling off.
 uniform sampler2DArray shadow_map;
 uniform mat4 face_views[6];
 uniform vec3 light_position;

@@ -64,26 +64,27 @@ def _nonfinite(frusta) -> int:
     return int(sum(np.count_nonzero(~np.isfinite(m)) for f in frusta for m in (f.view, f.proj)))
 
 
-# The guard band of a point light's faces, per side, as a fraction of the face's texels: a
-# percentage-closer region centred on a point at its face's edge reaches this far into the
-# neighbouring directions and still reads the face (pcf's default footprint, 1 to a few
-# texels, reaches well inside it at any res; only the largest regions, up to 64 texels at a
-# grazing view of a small map, reach past it and count as lit there).
-CUBE_GUARD = 1 / 64
+# The guard band of a point light's faces, in texels per side: half the largest
+# percentage-closer region (MAX_FOOTPRINT in pcf_samples.glsl), so a region centred on a point
+# at its face's edge still reads that face's depths, never past its edge (which would count
+# as lit: with 16 texels pcf still leaked on hard_point_ring's diagonal seams at map 1024).
+CUBE_GUARD_TEXELS = 32
 _FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
 assert len(_FACE_NAMES) == len(CUBE_AXES)
 
 
 class CubeDepthMap:
-    """A point light's depth map: six res x res linear-depth faces (the layers of an R32F
-    array, over one depth buffer), each rendered in a timed pass of its own.
-    ``guard`` widens each face past 90 degrees by that fraction of its texels per side."""
+    """A point light's depth map: six linear-depth faces (the layers of an R32F array, over one
+    depth buffer), each rendered in a timed pass of its own. Each face's own 90 degrees span
+    ``res`` texels; ``guard`` more texels on every side hold its neighbours' nearest
+    directions, so a face is res + 2 guard texels wide."""
 
-    def __init__(self, frame: Frame, res: int, guard: float = 0.0):
-        self.res = res
-        self.half_tan = 1 / (1 - 2 * guard)
+    def __init__(self, frame: Frame, res: int, guard: int = 0):
+        self.res, self.size = res, res + 2 * guard
+        self.half_tan = self.size / res
         self.fit(frame)
-        self.fbo = Framebuffer(res, res, (GL.GL_R32F,), depth=True, layers=len(CUBE_AXES))
+        self.fbo = Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
+                               layers=len(CUBE_AXES))
         self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
 
     @property
@@ -95,7 +96,7 @@ class CubeDepthMap:
         return _nonfinite(self.faces)
 
     def fit(self, frame: Frame) -> None:
-        self.faces = cube_faces(frame.scene, self.res, self.half_tan)
+        self.faces = cube_faces(frame.scene, self.size, self.half_tan)
 
     def render(self, frame: Frame) -> None:
         GL.glEnable(GL.GL_DEPTH_TEST)
@@ -113,7 +114,7 @@ class CubeDepthMap:
         first = self.faces[0]
         return dict(shadow_map=self.fbo.colors[0].bind(unit),
                     face_views=np.stack([f.view for f in self.faces]), light_proj=first.proj,
-                    light_position=frame.scene.light.position, map_res=float(self.res),
+                    light_position=frame.scene.light.position, map_res=float(self.size),
                     light_is_ortho=False, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, first.view))
 
@@ -176,9 +177,10 @@ class MapShading:
     """Two passes: the light depth map, then one full-screen pass writing V from it with
     ``fragment``, a shader beside this module built on ``shadow_map.glsl`` (``defines`` go to
     it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded).
-    A point light's map is a :class:`CubeDepthMap` (its faces widened by ``cube_guard``)."""
+    A point light's map is a :class:`CubeDepthMap` (its faces widened by ``cube_guard``
+    texels)."""
 
-    def __init__(self, frame: Frame, res: int, fragment: str, cube_guard: float = 0.0,
+    def __init__(self, frame: Frame, res: int, fragment: str, cube_guard: int = 0,
                  **defines):
         self.cube = frame.scene.light.type == "point"
         if self.cube:
@@ -227,7 +229,7 @@ class FilteredShadowMap:
     ``pcf_samples.glsl`` (same samples, its own per-sample test; ``defines`` go to it)."""
 
     def __init__(self, frame: Frame, res: int, fragment: str = "pcf.frag.glsl", **defines):
-        self.passes = MapShading(frame, res, fragment, cube_guard=CUBE_GUARD, **defines)
+        self.passes = MapShading(frame, res, fragment, cube_guard=CUBE_GUARD_TEXELS, **defines)
 
     @property
     def map(self) -> LightDepthMap | CubeDepthMap:
