@@ -201,7 +201,10 @@ def test_a_point_light_inside_a_closed_box_runs_and_leaves_everything_outside_da
         # but for pixels whose centre sees the floor and some samples the wall beside it
         # (Mitsuba lights a wall's outer side toward a light behind it: it faces away)
         assert (ref == 0).mean() > 0.98
-        assert (e.visibility[e.mask] == 0).all(), technique
+        v = e.visibility[e.mask]
+        # pcf: but for the floor at the walls' feet, whose footprint region reaches the floor
+        # inside the box, the same plane (a concave contact, as with any one map)
+        assert (v == 0).all() if technique == "sm" else (v == 0).mean() > 0.98, technique
 
 
 def point_scene(**light) -> dict:
