@@ -71,9 +71,9 @@ def plate(gl_context):
 
 def test_reference_of_a_plate_over_a_floor_is_the_visibility_by_hand(plate):
     """The traced V of a point light against the slab test of every pixel centre's segment to
-    the light, and the direct image against albedo x cos x power_scale / r^2. Catches shadow
-    rays sent along an axis instead of to the point, the point not moved with the scene to
-    Mitsuba's origin (the shadow shifts by (3, 2, 1)), the emitter missing or scaled otherwise
+    the light, and the direct image against albedo x cos x power_scale / r^2. Catches (each
+    seen failing) the shadow rays' end or the emitter not moved with the scene to Mitsuba's
+    origin (the shadow, or the light, off by (3, 2, 1)); also an emitter scaled otherwise
     than the GL side shades (power_scale)."""
     scene, reference, arrays, mask, by_hand = plate
     shadowed = 1 - by_hand[mask].mean()
@@ -109,11 +109,10 @@ POINT_CASES = ("hard_point_ring", "hard_point_grazing", "hard_point_seam")
 @pytest.mark.parametrize("technique", ["sm", "pcf"])
 def test_cube_map_at_1024_is_right_beyond_the_edge_band(case, technique, evaluate):
     """sm and pcf at map 1024 per face on the point-light hard cases, within the bounds
-    above. Catches faces rendered in one order and looked up in another, a face turned or
-    mirrored (its up vector), depths of one face compared in another's units, a bias not per
-    face texel (acne on the grazing floor), a near plane that clips the ring's casters, pcf
-    samples falling off a face (lit: 0.13 % leak on the ring's diagonal seams with a 16-texel
-    guard band, 1.3 % with none)."""
+    above. Catches (each seen failing): faces looked up in another order than rendered (the
+    layer's sign swapped), no slope term in the bias (acne on the ring's and the grazing
+    floor), pcf samples falling off a face and counted lit (leak on the ring's diagonal
+    seams with a 16-texel guard band, and with none)."""
     e = evaluate(hard_case(case), technique, {"res": 1024})
     row = e.row
     assert row["status"] == "ok", row["error"]
@@ -139,10 +138,9 @@ def _seam_pixels(position, light_position, texels: float, res: int) -> np.ndarra
 def test_seam_pixels_are_not_wrong_beyond_the_edge_band(technique, evaluate):
     """On hard_point_seam (shadow edges crossing from the downward face into the sideways
     one) every pixel within 4 texels of the seam, outside the edge band, agrees with the
-    reference (|V - V_ref| < 0.1, stricter than 'wrong'). Catches faces meeting with a gap or
-    overlap, the face chosen by another rule in the shader than in the faces' order, and pcf
-    samples that fall off the face counted lit (V 0.5 on the shadowed side of the seam: the
-    faces' guard band)."""
+    reference (|V - V_ref| < 0.1, stricter than 'wrong'). Catches (each seen failing): the
+    face not chosen per point (choose_face skipped), and pcf samples that fall off the face
+    counted lit (no guard band: V near 0.5 on the shadowed side of the seam)."""
     res = 256  # a coarse map: the seam's texels are large
     scene = hard_case("hard_point_seam").with_resolution(192, 192)
     e = evaluate(scene, technique, {"res": res})
@@ -182,8 +180,8 @@ def test_a_point_light_inside_a_closed_box_runs_and_leaves_everything_outside_da
     """A light inside a closed mesh is legitimate: every technique runs or skips with a reason,
     and the compared pixels (the floor around the box, facing the light; the walls face away
     from it) are in shadow in the reference and in each map. Catches a near plane beyond the
-    walls (light escapes), a fit that assumes the light outside the bounds, a reference that
-    shadows nothing."""
+    walls, where the light escapes (seen failing with near = far / 2), and a light inside the
+    bounds refused or failing."""
     scene_file = tmp_path / "scenes.yaml"
     scene_file.write_text(yaml.safe_dump({"scenes": {"boxed": CLOSED_BOX}}))
     out = tmp_path / "out"
@@ -221,7 +219,9 @@ def point_scene(**light) -> dict:
 ])
 def test_bad_point_lights_exit_2_naming_file_and_key(light, key, tmp_path, capsys):
     """A point light with a NaN position, or with a spot's or directional light's key. Catches
-    the point model accepting extra keys (a direction silently ignored) or NaN."""
+    the point model accepting extra keys (a direction silently ignored) or NaN (seen failing
+    with extra="ignore", allow_inf_nan=True). No ``omni`` knob exists (one cube map only), so
+    its bad-input row does not arise."""
     scene_file = tmp_path / "scenes.yaml"
     scene_file.write_text(yaml.safe_dump({"scenes": {"s": point_scene(**light)}}))
     out = tmp_path / "out"
