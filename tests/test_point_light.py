@@ -73,8 +73,8 @@ def test_reference_of_a_plate_over_a_floor_is_the_visibility_by_hand(plate):
     """The traced V of a point light against the slab test of every pixel centre's segment to
     the light, and the direct image against albedo x cos x power_scale / r^2. Catches (each
     seen failing) the shadow rays' end or the emitter not moved with the scene to Mitsuba's
-    origin (the shadow, or the light, off by (3, 2, 1)); also an emitter scaled otherwise
-    than the GL side shades (power_scale)."""
+    origin (the shadow, or the light, off by (3, 2, 1)), and an emitter not scaled by
+    power_scale as the GL side shades."""
     scene, reference, arrays, mask, by_hand = plate
     shadowed = 1 - by_hand[mask].mean()
     assert 0.05 < shadowed < 0.5  # the shadow is there, and so is lit floor
