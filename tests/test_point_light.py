@@ -231,3 +231,17 @@ def test_bad_point_lights_exit_2_naming_file_and_key(light, key, tmp_path, capsy
     assert code == 2 and len(err) == 1, err
     assert str(scene_file) in err[0] and f"scenes.s.{key}" in err[0], err
     assert not out.exists()
+
+
+def test_a_light_orbit_turns_a_point_light_about_the_scene_centre():
+    """light_orbit turns a point light's position about the vertical axis through the centre
+    of the bounds, and its Light keeps no direction. Catches the point light handled as a spot
+    (its target looked up) or left where it is."""
+    moving = dict(CLOSED_BOX, motion={"frames": 2, "light_orbit": 90})
+    scene = build_scene("boxed", config.Scene.model_validate(moving))
+    centre = scene.bounds.mean(axis=0)
+    last = scene.at_frame(1).light
+    start = np.array(CLOSED_BOX["light"]["position"])
+    turned = centre + np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]]) @ (start - centre)
+    assert last.type == "point" and last.direction is None and last.positional
+    np.testing.assert_allclose(last.position, turned, atol=1e-12)
