@@ -32,6 +32,7 @@ $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 
 # benchmarks run once each as plain tests here (their timings are make microbench's job)
 test: setup
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q --benchmark-disable
 
 # Some failed runs (exit 1) still get their dashboard, which shows why; bad input (2) does not.
@@ -82,6 +83,7 @@ reproduce: setup
 
 lint: setup
 	$(VENV)/bin/ruff check harness techniques tests
+	$(VENV)/bin/lint-imports
 
 clean:
 	rm -rf $(VENV) $(STAMPS) .pytest_cache

@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 
 from harness.gl.context import get_context
-from harness.runner import evaluate
+from harness.run import evaluate
 from harness.scene import load_scene
 
 SCENE_FILE = Path(__file__).resolve().parent.parent / "scenes.yaml"

@@ -106,17 +106,17 @@ def cmd_list(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from . import runner
+    from . import results, run
 
     if args.scheduler and args.executor != "dask":
         raise ConfigError("--scheduler goes with --executor dask")
     if not 1 <= args.workers <= MAX_WORKERS:
         raise ConfigError(f"--workers: must be in [1, {MAX_WORKERS}], got {args.workers}")
-    plan = runner.plan_runs(
+    plan = run.plan_runs(
         experiment_path=args.experiment, scene_file=args.scene_file,
         scenes=_names("--scenes", args.scenes),
         techniques=_names("--techniques", args.techniques),
-        overrides=runner.parse_overrides(args.set or []),
+        overrides=run.parse_overrides(args.set or []),
         timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
@@ -126,17 +126,17 @@ def cmd_run(args) -> int:
         # the cluster is up (or the scheduler answered) before anything is written to --out
         with dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
                            platform_name=args.platform) as renderer:
-            code = runner.execute(plan, args.out, platform_name=args.platform,
-                                  progress=not args.quiet, renderer=renderer,
-                                  retime_noisy=args.retime_noisy)
+            code = run.execute(plan, args.out, platform_name=args.platform,
+                               progress=not args.quiet, renderer=renderer,
+                               retime_noisy=args.retime_noisy)
     else:
-        code = runner.execute(plan, args.out, platform_name=args.platform,
-                              progress=not args.quiet, retime_noisy=args.retime_noisy)
-    rows = [r for r in runner.results.read_rows(args.out)]
+        code = run.execute(plan, args.out, platform_name=args.platform,
+                           progress=not args.quiet, retime_noisy=args.retime_noisy)
+    rows = [r for r in results.read_rows(args.out)]
     ids = {r.run_id for r in plan.runs}
     mine = [r for r in rows if r["run_id"] in ids]
     counts = {s: sum(r["status"] == s for r in mine) for s in ("ok", "skipped", "error")}
-    rendered = runner.read_manifest(Path(args.out))["invocations"][-1]["runs_rendered"]
+    rendered = run.read_manifest(Path(args.out))["invocations"][-1]["runs_rendered"]
     print(f"{len(mine)} runs in {args.out}/results.csv ({counts['ok']} ok, {counts['skipped']} "
           f"skipped, {counts['error']} failed; {rendered} rendered now, "
           f"{len(mine) - rendered} already done) in {time.perf_counter() - started:.1f} s",
@@ -169,7 +169,7 @@ def cmd_reference(args) -> int:
     from .reference import compute_reference
     from .report import visibility_png
     from .results import inside, save_arrays
-    from .runner import _exclusive, reference_array_path
+    from .run.store import _exclusive, reference_array_path
     from .scene import load_scene
 
     # the bounds of an experiment's reference samples and of a scene's resolution

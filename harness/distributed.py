@@ -2,7 +2,7 @@
 
 Each worker process owns its GL context, its frames and its reference cache. A task is a
 piece of one scene and resolution (at most ``TASK_RUNS`` runs), which the worker measures in
-interleaved rounds exactly as the serial runner does (:func:`harness.runner.run_group`); it
+interleaved rounds exactly as the serial runner does (:func:`harness.run.run_group`); it
 returns the runs' rows and arrays, and the client records them as the serial runner does
 (same ids, same files, atomic results.csv), so a sweep killed at the client or at a worker
 resumes the same way: runs already in results.csv are not sent again (a task killed midway
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from .config import ConfigError
 from .interrupt import deferred
-from .runner import Plan, RunSpec, record_run
+from .run import Plan, RunSpec, record_run
 
 # Runs per task: interleaving needs several runs in one worker, spreading the sweep needs
 # several tasks per worker.
@@ -57,7 +57,7 @@ def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
 
     from .gl.context import get_context
     from .reference import compute_reference
-    from .runner import failed_scene_row, run_group
+    from .run import failed_scene_row, run_group
 
     first = specs[0]
     context = get_context(platform)
@@ -112,7 +112,7 @@ SCHEDULER_TIMEOUT_S = 5
 @contextmanager
 def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
                   platform_name: str | None = None):
-    """Within the block, a renderer for :func:`harness.runner.execute` that sends each run to a
+    """Within the block, a renderer for :func:`harness.run.execute` that sends each run to a
     Dask cluster: the one at ``scheduler``, or a new LocalCluster of ``n_workers`` one-thread
     workers. The cluster is reached (or started) on entry, before the sweep writes anything,
     and a scheduler that does not answer within ``SCHEDULER_TIMEOUT_S`` is a ConfigError."""

@@ -3,18 +3,23 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from OpenGL import GL
 from pydantic import Field
 
 from harness.gl.framebuffer import Framebuffer
-from harness.gl.geometry import VertexArray
+from harness.gl.shaders import Program
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, fit_light
 
 from .shadowmap import LightDepthMap
-from .silhouette_edges import VERTEX_SIZES, EdgeAdjacency, edge_quads, project_edges
+from .silhouette_edges import (EDGE_FACES_BINDING, FACE_NORMALS_BINDING, QUAD_HALF_WIDTH,
+                               EdgeAdjacency, EdgeMesh)
+
+HERE = Path(__file__).parent
 
 # Clear value of the silhouette map: a texel no silhouette crosses holds its centre.
 EMPTY_POINT = (0.5, 0.5, 0.0, 0.0)
@@ -40,16 +45,19 @@ class SilhouetteMap(Technique):
     piecewise-constant one of a shadow map.
 
     Per frame: silhouette edges from the light (a light-facing and a back-facing face, or a
-    boundary edge of an open mesh) are found on the CPU from an edge-adjacency table built in
-    ``prepare``. Three passes, each timed:
+    boundary edge of an open mesh) are found on the GPU from an edge mesh built in ``prepare``
+    (``silhouette_edges.EdgeMesh``: endpoints and adjacent face normals). Three passes, each
+    timed:
 
     * ``depth_map``: linear light depth, the projection offset half a texel so its samples
       sit at the corners of silhouette-map texels;
-    * ``silhouette_map``: the edge search on the CPU and the upload of one thin quad per edge,
-      then a RG32F map of one point per texel (texel-local [0,1]^2, empty texels hold the
-      centre): endpoint in the texel, else the diagonal intersections (one: it, two: their
-      midpoint, none: discard), enlarged near corners and clamped; points farther from the
-      light than all four corner depths (minus ``bias``) are discarded as hidden;
+    * ``silhouette_map``: one point per edge; the vertex stage keeps the silhouettes and
+      projects them, clipped to the light's near plane, the geometry stage emits each one's
+      thin quad, and the fragment stage fills a RG32F map of one point per texel (texel-local
+      [0,1]^2, empty texels hold the centre): endpoint in the texel, else the diagonal
+      intersections (one: it, two: their midpoint, none: discard), enlarged near corners and
+      clamped; points farther from the light than all four corner depths (minus ``bias``) are
+      discarded as hidden;
     * ``shading``: four corner depth tests; where they disagree, the skewed-quadrant
       reconstruction from the texel's point and its four neighbours' (eight line tests).
 
@@ -63,11 +71,12 @@ class SilhouetteMap(Technique):
     silhouette point's own depth with the corners and uses ``bias`` alone.
 
     Extra result columns: ``sil_pct`` (percent of shaded pixels that took the silhouette path,
-    counted by atomic counters in the shading pass), ``model_bytes_per_px`` (4 + 24 P, the
-    paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges``. The paper's P divides
-    its silhouette fill by the scene fill (forward shading: every fragment drawn, overdraw
-    included); ``sil_pct`` divides by the covered pixels, each shaded once in the deferred
-    pass, so the two agree only where the scene has no overdraw.
+    counted by atomic counters in an untimed repeat of the shading pass), ``model_bytes_per_px``
+    (4 + 24 P, the paper's bandwidth model with P = sil_pct / 100), ``silhouette_edges`` (the
+    quads the edge pass emits, counted in an untimed repeat with the rasterizer off). The
+    paper's P divides its silhouette fill by the scene fill (forward shading: every fragment
+    drawn, overdraw included); ``sil_pct`` divides by the covered pixels, each shaded once in
+    the deferred pass, so the two agree only where the scene has no overdraw.
     ``fetches_per_px`` = 4 + 5 P; ``mem_bytes`` = depth map (with its depth buffer) +
     silhouette map.
 
@@ -101,12 +110,17 @@ class SilhouetteMap(Technique):
         res = self.params.res
         self.depth_map = LightDepthMap(frame, res)
         self.silhouette_fbo = Framebuffer(res, res, (GL.GL_RG32F,), depth=False)
-        self.adjacency = EdgeAdjacency(frame.scene)
-        self.quads = VertexArray(np.zeros((0, sum(VERTEX_SIZES)), np.float32), VERTEX_SIZES)
-        self.map_program = Technique.shader(__file__, "silhouette_map.vert.glsl",
-                                            "silhouette_map.frag.glsl")
+        self.edge_mesh = EdgeMesh(EdgeAdjacency(frame.scene))
+        self.map_program = Program(HERE / "silhouette_edges.vert.glsl",
+                                   HERE / "silhouette_map.frag.glsl",
+                                   {"EDGE_FACES_BINDING": EDGE_FACES_BINDING,
+                                    "FACE_NORMALS_BINDING": FACE_NORMALS_BINDING,
+                                    "QUAD_HALF_WIDTH": QUAD_HALF_WIDTH},
+                                   geometry=HERE / "silhouette_edges.geom.glsl")
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl",
                                         "silhouette_shading.frag.glsl")
+        self.counting_shading = Technique.shader(__file__, "fullscreen.vert.glsl",
+                                                 "silhouette_shading.frag.glsl", COUNT_PIXELS=1)
         self.counters = GL.glGenBuffers(1)
         self.edge_count = 0
         self.counted_pixels = (0, 0)
@@ -119,34 +133,47 @@ class SilhouetteMap(Technique):
             self.frustum = fit_light(frame.scene, res)
             self.depth_map.frustum = half_texel_offset(self.frustum, res)
 
-    def _draw_silhouette_map(self, frame: Frame) -> None:
-        res = self.params.res
-        texel, depth = project_edges(self.adjacency.silhouette(frame.scene.light),
-                                     self.frustum, res)
-        self.edge_count = len(texel)
-        self.quads.update(edge_quads(texel, depth))
-        self.silhouette_fbo.clear(EMPTY_POINT)
+    def draw_edges(self, frame: Frame, program: Program, draw: Callable[[], None]) -> None:
+        """Rasterise silhouette quads into the bound silhouette map: ``draw()`` issues them for
+        ``program`` (the edge mesh for the edge program; the tests' CPU-built quads for theirs)."""
         GL.glDisable(GL.GL_DEPTH_TEST)
         GL.glDisable(GL.GL_BLEND)
         GL.glDisable(GL.GL_CULL_FACE)
-        self.map_program.use()
-        self.map_program.set(**self.depth_map.lookup_uniforms(0, 0.0, frame))
-        self.map_program.set(bias=self.params.bias, center_points=self.params.center_points)
-        self.quads.draw()
+        program.use()
+        program.set(**self.depth_map.lookup_uniforms(0, 0.0, frame))
+        program.set(bias=self.params.bias, center_points=self.params.center_points,
+                    near=self.frustum.near, silhouette_proj=self.frustum.proj,
+                    **self.edge_mesh.uniforms(frame.scene.light, self.frustum.view))
+        draw()
 
-    def _shade(self, frame: Frame) -> None:
+    def _shade(self, frame: Frame, program: Program) -> None:
         p = self.params
+        frame.begin_visibility()
+        program.use()
+        unit = frame.bind_gbuffer(program)
+        program.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
+        program.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1), bias=p.bias)
+        frame.draw_fullscreen(covered_only=True)  # V = 1 and nothing counted where no surface
+
+    def _count_diagnostics(self, frame: Frame) -> None:
+        """Untimed repeats of the last two passes that count what the result columns report:
+        the quads the edge pass emits (two triangles each; the rasterizer off, so the map stays)
+        and the pixels the shading pass shades and sends down the silhouette path."""
+        query = GL.glGenQueries(1)[0]
+        GL.glEnable(GL.GL_RASTERIZER_DISCARD)
+        GL.glBeginQuery(GL.GL_PRIMITIVES_GENERATED, query)
+        self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
+        GL.glEndQuery(GL.GL_PRIMITIVES_GENERATED)
+        GL.glDisable(GL.GL_RASTERIZER_DISCARD)
+        self.edge_count = int(GL.glGetQueryObjectuiv(query, GL.GL_QUERY_RESULT)) // 2
+        GL.glDeleteQueries(1, [query])
+
         GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, self.counters)
         GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 8, np.zeros(2, np.uint32),
                         GL.GL_DYNAMIC_READ)
         GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, self.counters)
-        frame.begin_visibility()
-        self.shading.use()
-        unit = frame.bind_gbuffer(self.shading)
-        self.shading.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
-        self.shading.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1),
-                         bias=p.bias)
-        frame.draw_fullscreen(covered_only=True)  # V = 1 and nothing counted where no surface
+        self._shade(frame, self.counting_shading)
+        self.counted_pixels = self._read_counters()
 
     def _read_counters(self) -> tuple[int, int]:
         """(shaded pixels, pixels that took the silhouette path) of the last shading pass."""
@@ -161,10 +188,11 @@ class SilhouetteMap(Technique):
         with frame.measure("depth_map"):
             self.depth_map.render(frame)
         with frame.measure("silhouette_map"):
-            self._draw_silhouette_map(frame)
+            self.silhouette_fbo.clear(EMPTY_POINT)
+            self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
         with frame.measure("shading"):
-            self._shade(frame)
-        self.counted_pixels = self._read_counters()
+            self._shade(frame, self.shading)
+        self._count_diagnostics(frame)
         shaded, silhouette = self.counted_pixels
         share = silhouette / max(shaded, 1)
         return frame.output(
@@ -181,7 +209,10 @@ class SilhouetteMap(Technique):
         return np.ascontiguousarray(self.silhouette_fbo.read(0)[::-1])
 
     def release(self) -> None:
-        for resource in (self.depth_map, self.silhouette_fbo, self.quads, self.map_program,
-                         self.shading):
+        # Mesa 22.3 (llvmpipe) keeps a program that draws after a geometry-shader program alive
+        # past its deletion, until a geometry-shader program is bound again (a leaked program)
+        self.map_program.use()
+        for resource in (self.depth_map, self.silhouette_fbo, self.edge_mesh, self.map_program,
+                         self.shading, self.counting_shading):
             resource.release()
         GL.glDeleteBuffers(1, [self.counters])

@@ -1,10 +1,18 @@
 """Silhouette edges seen from the light, and the thin quads that rasterise them into a
-silhouette map (Sen, Cammarano, Hanrahan 2003, sections 2 and 3.1). A helper, not a technique."""
+silhouette map (Sen, Cammarano, Hanrahan 2003, sections 2 and 3.1). A helper, not a technique.
+
+Per frame the edges are found and widened on the GPU from the :class:`EdgeMesh` built once in
+``prepare`` (``silhouette_edges.vert.glsl``, ``silhouette_edges.geom.glsl``). The NumPy path
+(:meth:`EdgeAdjacency.silhouette`, :func:`project_edges`, :func:`edge_quads`, drawn by
+``silhouette_quads.vert.glsl``) does the same work on the CPU and stays only as the tests'
+oracle."""
 
 from __future__ import annotations
 
 import numpy as np
+from OpenGL import GL
 
+from harness.gl.geometry import VertexArray
 from harness.scene import BuiltScene, Light
 from harness.transforms import LightFrustum
 
@@ -15,6 +23,13 @@ QUAD_HALF_WIDTH = 0.75
 # Floats per quad vertex: position (2), segment endpoints A and B (2 + 2), their depths (2).
 VERTEX_FLOATS = 8
 VERTEX_SIZES = (2, 2, 2, 2)
+
+# Floats per edge of the edge mesh: endpoints A and B (3 + 3), then where its faces' list starts
+# and how many faces it has (float attributes: exact integers below 2^24).
+EDGE_SIZES = (3, 3, 2)
+MAX_FACE_REFERENCES = 2 ** 24
+# Shader storage bindings of the edge mesh's face list and face normals.
+EDGE_FACES_BINDING, FACE_NORMALS_BINDING = 0, 1
 
 
 class EdgeAdjacency:
@@ -51,6 +66,61 @@ class EdgeAdjacency:
         mixed = (facing_per_edge > 0) & (facing_per_edge < self.faces_per_edge)
         keep = mixed | (self.faces_per_edge == 1)
         return self.vertices[self.edges[keep]]
+
+
+class EdgeMesh:
+    """Every edge of the scene on the GPU, geometry only, for ``silhouette_edges.vert.glsl``:
+    one point per edge (its endpoints, the start and length of its run in the face list), the
+    face list (indices of an edge's one, two or, non-manifold, more faces, edge after edge) and
+    each face's normal.
+
+    Positions are stored relative to ``origin``, the centre of the scene's bounds, and the
+    vertex stage works in that frame: :meth:`uniforms` folds ``model`` (today the translation
+    to the origin) into the light view and brings the light into the frame, in float64. So
+    float32 never holds a coordinate as large as the scene's distance from the world origin
+    (hard_far_from_origin, 1e5 away: over half a texel of error in world coordinates). Edges
+    come part after part, so a part is a contiguous range of them: a part's rigid motion later
+    joins ``model`` for that range."""
+
+    def __init__(self, adjacency: EdgeAdjacency):
+        if len(adjacency.edge_of_half) >= MAX_FACE_REFERENCES:
+            raise ValueError(f"{len(adjacency.edge_of_half)} edge-face references: the edge "
+                             f"mesh addresses at most {MAX_FACE_REFERENCES}")
+        by_edge = np.argsort(adjacency.edge_of_half, kind="stable")
+        edge_faces = adjacency.face_of_half[by_edge].astype(np.uint32)
+        first = np.cumsum(adjacency.faces_per_edge) - adjacency.faces_per_edge
+        self.origin = (adjacency.vertices.min(axis=0) + adjacency.vertices.max(axis=0)) / 2
+        local = adjacency.vertices - self.origin
+        points = np.concatenate([local[adjacency.edges].reshape(-1, 6),
+                                 first[:, None], adjacency.faces_per_edge[:, None]], axis=1)
+        normals = np.zeros((len(adjacency.face_normals), 4), np.float32)
+        normals[:, :3] = adjacency.face_normals
+        self.edges = VertexArray(points, EDGE_SIZES, mode=GL.GL_POINTS)
+        self.buffers = GL.glGenBuffers(2)
+        for buffer, data in zip(self.buffers, (edge_faces, normals)):
+            GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
+            GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(data.nbytes, 4), data,
+                            GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def uniforms(self, light: Light, light_view: np.ndarray) -> dict:
+        """``light_view_model`` (``light_view`` after ``model``) and ``light_in_model`` (the
+        light as a homogeneous vector, w = 0 directional, in the mesh's frame)."""
+        model = np.eye(4)
+        model[:3, 3] = self.origin
+        light_vector = (np.append(-light.direction, 0.0) if light.type == "directional"
+                        else np.append(light.position, 1.0))
+        return {"light_view_model": light_view @ model,
+                "light_in_model": np.linalg.solve(model, light_vector)}
+
+    def draw(self) -> None:
+        for binding, buffer in zip((EDGE_FACES_BINDING, FACE_NORMALS_BINDING), self.buffers):
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
+        self.edges.draw()
+
+    def release(self) -> None:
+        self.edges.release()
+        GL.glDeleteBuffers(2, self.buffers)
 
 
 def project_edges(endpoints: np.ndarray, frustum: LightFrustum,

@@ -4,15 +4,20 @@
 // silhouette point to its four neighbours' points split the texel into four skewed quadrants
 // (Figure 5); eight line tests against the rays to the neighbours and to the corners place
 // the shaded point in one of eight pie-shaped regions, hence in a quadrant, and V is that
-// quadrant's corner test. The atomic counters count shaded pixels and those that took the
-// silhouette path (P in the paper's Table 1).
+// quadrant's corner test. With COUNT_PIXELS defined (the untimed repeat of the pass), atomic
+// counters count shaded pixels and those that took the silhouette path (P in the paper's Table 1).
 #include "gbuffer_read.glsl"
 #include "shadow_map.glsl"
 
 uniform sampler2D silhouette_map;
 uniform float bias;
+#ifdef COUNT_PIXELS
 layout(binding = 0, offset = 0) uniform atomic_uint shaded_pixels;
 layout(binding = 0, offset = 4) uniform atomic_uint silhouette_pixels;
+#define COUNT(counter) atomicCounterIncrement(counter)
+#else
+#define COUNT(counter)
+#endif
 layout(location = 0) out float visibility;
 
 // Texel-local point; texels outside the map hold the default, the centre.
@@ -52,7 +57,7 @@ int skewed_quadrant(ivec2 cell, vec2 local) {
 void main() {
     vec3 p, n;
     if (!gbuffer_fetch(p, n)) { visibility = 1.0; return; }
-    atomicCounterIncrement(shaded_pixels);
+    COUNT(shaded_pixels);
     Receiver r = receiver(p, n);
     if (!r.in_front) { visibility = 1.0; return; }
     vec2 u = r.texel - 0.5;   // silhouette-map coordinates
@@ -67,6 +72,6 @@ void main() {
         visibility = corner[0];
         return;
     }
-    atomicCounterIncrement(silhouette_pixels);
+    COUNT(silhouette_pixels);
     visibility = corner[skewed_quadrant(ivec2(cell), u - cell)];
 }

@@ -46,8 +46,8 @@ def scene_at(shipped_scenes):
 
 @pytest.fixture(scope="session")
 def evaluate(gl_context):
-    """``evaluate(scene, technique, params=None, **kw)`` -> harness.runner.Evaluation."""
-    from harness.runner import evaluate as run
+    """``evaluate(scene, technique, params=None, **kw)`` -> harness.run.Evaluation."""
+    from harness.run import evaluate as run
 
     return run
 

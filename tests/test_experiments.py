@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from harness import config, results, runner
+from harness import config, results
+from harness import run as runner
 from harness.cli import main as shadowbench
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -29,7 +29,8 @@ import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from harness import cli, config, runner
+from harness import cli, config
+from harness import run as runner
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED_SCENES = [ROOT / "scenes.yaml", ROOT / "experiments/papers/scenes.yaml",

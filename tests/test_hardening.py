@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import cli, config, interrupt, registry, results, runner
+from harness import cli, config, interrupt, registry, results
+from harness import run as runner
 from test_config import GOOD  # a valid 32x32 scene: a plane and a box, directional light
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -700,7 +701,8 @@ def test_damaged_arrays_of_runs_not_in_this_plan_become_error_rows(tmp_path, gl_
 
 CTRL_C = """
 import os, signal, sys, threading, time
-from harness import cli, runner
+from harness import cli
+from harness import run as runner
 start = threading.Event()
 def interrupt():
     start.wait()

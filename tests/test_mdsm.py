@@ -13,7 +13,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from pydantic import ValidationError
 
 from harness import config, metrics
-from harness.runner import validate_params
+from harness.run import validate_params
 from harness.technique import Frame, reset_gl_state
 from techniques.mdsm import MultipleDepthShadowMap
 from techniques.shadowmap import EMPTY_DEPTH

@@ -41,6 +41,19 @@ def test_edge_band_of_a_vertical_edge():
     assert metrics.mae(v, ref) == pytest.approx(0.1)
 
 
+def test_edge_mae_default_band_is_two_pixels_either_side():
+    """DESIGN's edge band is 2 px, and papers/gmnpr.py scores its near region with edge_mae's
+    default. Catches that default changed to 1 px (the 1-px band, columns 3..6, would give
+    2.5 / 40 = 0.0625). By hand: boundary columns 4 and 5, within 2 px (Chebyshev) columns
+    2..7, 60 pixels; errors 0.5 in column 2 and 0.25 in column 6, 10 rows each."""
+    ref = np.ones((10, 10))
+    ref[:, :5] = 0.0
+    v = ref.copy()
+    v[:, 2] = 0.5  # 2 px from the boundary: inside the default band only
+    v[:, 6] = 0.75  # 1 px from it: inside both
+    assert metrics.edge_mae(v, ref) == pytest.approx((10 * 0.5 + 10 * 0.25) / 60)
+
+
 def test_boundary_ignores_unmasked_neighbours():
     ref = np.ones((6, 6))
     mask = np.ones((6, 6), bool)

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from harness import cli, config, metrics, motion, registry
-from harness.runner import evaluate
+from harness.run import evaluate
 from harness.scene import build_scene
 from harness.technique import Frame, NotApplicable, reset_gl_state
 

@@ -313,7 +313,7 @@ def test_rewording_a_description_keeps_the_scene_key(shipped_scenes):
 
 def test_evaluate_takes_a_scene_name_and_a_scene_file(gl_context):
     """``evaluate("box_plane", ...)`` failed with AttributeError on a str."""
-    from harness.runner import evaluate
+    from harness.run import evaluate
 
     result = evaluate("box_plane", "sm", scene_file=ROOT / "scenes.yaml", resolution=(48, 32),
                       samples=4)

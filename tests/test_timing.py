@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from harness import cli, registry, runner, timing
+from harness import cli, registry, timing
+from harness.run import score as runner
 from harness.technique import Technique, TechniqueParams
 
 

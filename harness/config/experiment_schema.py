@@ -22,7 +22,7 @@ class Grid(Strict):
     every declared knob and value; a mapping: those knobs, with these values), expanded by the
     planner, which knows the techniques' declarations."""
 
-    # a non-finite value is the technique's error (runner.validate_params), named there
+    # a non-finite value is the technique's error (run.plan.validate_params), named there
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=True)
 
     product: dict[str, list[Scalar]] = {}

@@ -1,4 +1,5 @@
-// One vertex of an edge's thin quad, all in silhouette-map texel coordinates.
+// One vertex of an edge's thin quad built on the CPU by edge_quads, all in silhouette-map texel
+// coordinates: the tests' oracle for the quads silhouette_edges.geom.glsl builds.
 layout(location = 0) in vec2 corner;
 layout(location = 1) in vec2 endpoint_a;
 layout(location = 2) in vec2 endpoint_b;

@@ -1,0 +1,2 @@
+// Depth only: the rasteriser writes the depth the comparison reads.
+void main() {}

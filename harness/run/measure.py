@@ -1,0 +1,234 @@
+"""Measuring, after planning and above scoring: the runs of one scene and resolution,
+prepared in batches, render their measured frames in interleaved rounds (moving: frame by frame)."""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import registry
+from ..timing import cpu_sample, others_time
+from .plan import RunSpec
+from .score import _first_columns, _observe, _one_line, _score, _Sequence, _sequence_score, _Truth
+
+# Runs of one scene and resolution are measured in interleaved rounds (each round renders one
+# measured frame of every run of a batch), so a burst of load from other processes spreads
+# over all of them instead of landing on one. A batch keeps its runs prepared at once, so it
+# closes when its runs' maps (their mem_bytes, known after the first frame) reach
+# BATCH_BYTES or it holds BATCH_RUNS runs: memory stays within about one batch (a 4096^2
+# float map is 64 MiB) whatever the sweep.
+BATCH_BYTES = 256 * 2**20
+BATCH_RUNS = 16
+
+
+@dataclass
+class _Timed:
+    """A run between prepare and release: its row so far, technique, pass record and the
+    output of its last frame."""
+
+    spec: RunSpec
+    row: dict
+    meter: object  # harness.gl.measure.PassMeter, the run's own
+    technique: object = None
+    output: object = None  # harness.technique.ShadowOutput
+    measured: int = 0  # measured frames rendered so far
+    sequence: "_Sequence | None" = None  # a moving scene's run: what it keeps across frames
+
+    @property
+    def alive(self) -> bool:
+        return "status" not in self.row
+
+
+def _render(timed: _Timed, frame, measuring: bool, update: bool = False) -> None:
+    """One frame of the run; ``update``: the technique's update first, in the same frame (a
+    moving scene's frame: its timed part counts in the frame's time)."""
+    from ..technique import reset_gl_state
+
+    try:
+        with frame.metered(timed.meter):
+            timed.meter.new_frame(measuring)
+            if update:
+                timed.technique.update(frame)
+            timed.output = timed.technique.render(frame)
+        timed.measured += measuring
+    finally:
+        reset_gl_state()  # each run's frame starts from the state the harness assumes
+
+
+def _release(timed: _Timed) -> None:
+    from ..technique import reset_gl_state
+
+    if timed.technique is not None:
+        try:
+            timed.technique.release()
+        except Exception as e:  # the run's result stands; a failed release only leaks
+            timed.row["warnings"] = f"release failed: {_one_line(e)}"
+        timed.technique = None
+    timed.meter.release()
+    reset_gl_state()
+
+
+def _attempt(timed: _Timed, step, *args) -> bool:
+    """``step(*args)``; a technique's failure ends its run (status and error in its row,
+    resources released), never the sweep."""
+    from ..technique import NotApplicable
+
+    try:
+        step(*args)
+        return True
+    except NotApplicable as e:
+        timed.row.update(status="skipped", error=str(e))
+    except Exception as e:  # a technique's failure is its row's, not the sweep's
+        timed.row.update(status="error", error=_one_line(e))
+        if os.environ.get("SHADOWBENCH_DEBUG"):
+            traceback.print_exc()
+    _release(timed)
+    return False
+
+
+def _start(spec: RunSpec, frame, row: dict) -> _Timed:
+    """Prepare the run, update it to the frame and render its warm-up frames (with no
+    warm-up, its first measured frame; on a moving scene, one unmeasured frame): its map
+    bytes are then known."""
+    cls = registry.get(spec.technique)
+    timed = _Timed(spec, row, frame.new_meter())
+    moving = frame.frames > 1
+    warmup = max(spec.warmup, 1) if moving else spec.warmup
+
+    def prepare():
+        cls.check_light(frame.scene.light)
+        timed.technique = cls(cls.Params(**spec.params))
+        timed.technique.prepare(frame)
+        with frame.metered(timed.meter):  # not a measured frame: untimed
+            timed.technique.update(frame)
+        for _ in range(warmup):
+            _render(timed, frame, measuring=False)
+
+    if _attempt(timed, prepare) and warmup == 0:
+        _measure_round([timed], frame, 0)
+    return timed
+
+
+def _measure_round(batch: list[_Timed], frame, turn: int, update: bool = False) -> None:
+    """One measured frame of each run (``update``: each technique's update first), starting
+    at a position that turns each round (no run always follows the same one). The CPU time
+    other processes used during the round is attributed to each run in proportion to its
+    share of the round's wall time."""
+    order = batch[turn % len(batch):] + batch[:turn % len(batch)]
+    walls = []
+    before, began = cpu_sample(), time.perf_counter()
+    for timed in order:
+        start = time.perf_counter()
+        if _attempt(timed, _render, timed, frame, True, update):
+            walls.append((timed, time.perf_counter() - start))
+    round_s, after = time.perf_counter() - began, cpu_sample()
+    if before is None or after is None or round_s <= 0:
+        return
+    others_s, capacity_s = others_time(before, after)
+    for timed, wall in walls:
+        timed.meter.add_load(others_s * wall / round_s, capacity_s * wall / round_s)
+
+
+def _batches(specs: list[RunSpec], start):
+    """The runs started (``start(spec)``: prepared and warmed up) in batches that close at
+    BATCH_RUNS runs or BATCH_BYTES of maps; yields (the runs that could not start, the
+    batch)."""
+    queue = list(specs)
+    while queue:
+        failed, batch, batch_bytes = [], [], 0
+        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
+            timed = start(queue.pop(0))
+            if not timed.alive:
+                failed.append(timed)
+                continue
+            batch.append(timed)
+            batch_bytes += timed.output.mem_bytes
+        yield failed, batch
+
+
+def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
+              renderer: str):
+    """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
+    interleaved rounds; yields ``(spec, row, arrays)`` as each run finishes (arrays None
+    unless it ran). Never raises for a technique's failure: that is the row's status.
+
+    On a moving scene (``frame.frames`` > 1, ``reference`` its frame 0's) each round is a
+    frame of the sequence: :func:`_run_sequence`."""
+    def start(spec):
+        return _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
+                                                  renderer))
+
+    if frame.frames > 1:
+        yield from _run_sequence(_batches(specs, start), frame)
+        return
+    for failed, batch in _batches(specs, start):
+        for timed in failed:
+            yield timed.spec, timed.row, None
+        turn = 0
+        while live := [t for t in batch if t.alive and t.measured < t.spec.frames]:
+            _measure_round(live, frame, turn)
+            turn += 1
+        for timed in batch:
+            if not timed.alive:
+                yield timed.spec, timed.row, None
+                continue
+            _release(timed)
+            yield (timed.spec, *_score(timed, frame, reference))
+
+
+def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
+            renderer: str) -> tuple[dict, dict[str, np.ndarray] | None]:
+    """Run one technique alone on a prepared frame: its row and the arrays to store with it
+    (V, coverage and the technique's diagnostic maps as ``map_<name>``; None unless it ran).
+
+    Never raises for a technique's failure: that is the row's status and error."""
+    ((_, row, arrays),) = run_group([spec], frame, reference, scene_ms, frags_scene, renderer)
+    return row, arrays
+
+
+def _run_sequence(batches, frame):
+    """Runs on a moving scene (``frame`` at its frame 0), batch by batch: each batch goes
+    through the sequence, one interleaved round per frame (each technique's update, then its
+    render, measured), and each run's frame is scored as it is rendered against that frame's
+    reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run."""
+    from ..reference import compute_reference
+
+    for failed, batch in batches:
+        for timed in failed:
+            yield timed.spec, timed.row, None
+        previous, traced_s = None, 0.0
+        for t in range(frame.frames):
+            if not any(timed.alive for timed in batch):
+                break
+            spec = batch[0].spec
+            try:
+                frame.move_to(t)
+                reference = compute_reference(frame.scene, samples=spec.samples,
+                                              seed=spec.ref_seed)
+            except Exception as e:  # Mitsuba or GL cannot take this frame: the runs fail
+                for timed in batch:
+                    if timed.alive:
+                        timed.row.update(status="error", error=f"scene {spec.scene} frame {t}: "
+                                                               f"{_one_line(e)}")
+                        _release(timed)
+                break
+            traced_s += reference.seconds
+            truth = _Truth(t, reference, frame.compared_pixels(reference.covered))
+            live = [timed for timed in batch if timed.alive]
+            _measure_round(live, frame, t, update=True)
+            for timed in live:
+                if timed.alive:
+                    _attempt(timed, _observe, timed, frame, truth, previous)
+            previous = truth
+        for timed in batch:
+            if not timed.alive:
+                yield timed.spec, timed.row, None
+                continue
+            _release(timed)
+            timed.row["ref_seconds"] = traced_s
+            yield (timed.spec, *_sequence_score(timed, frame))
+        frame.move_to(0)  # the next batch warms up at frame 0

@@ -1,0 +1,216 @@
+"""Planning, the first step of a run: an experiment, a scene file and the command line become
+validated runs (RunSpec) and the scenes they need (Plan), before anything is rendered."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+from .. import config as cfg
+from .. import metrics, registry
+from ..scene import BuiltScene, build_scene
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run. Its stable id covers the scene description and resolution, technique,
+    parameters, the technique's code version, frames, warm-up, interval statistics and
+    reference settings: runs whose id is already in ``DIR/results.csv`` are skipped, so a
+    killed sweep restarted with the same arguments finishes the rest without duplicates."""
+
+    scene: str
+    technique: str
+    params: dict  # validated, every parameter present
+    width: int
+    height: int
+    frames: int
+    warmup: int
+    samples: int
+    ref_seed: int = 0
+    scene_key: str = ""
+    code_version: str = ""
+    statistics: str = "order"  # how the median's interval is computed (harness.timing)
+
+    @property
+    def params_json(self) -> str:
+        return json.dumps(self.params, sort_keys=True)
+
+    @property
+    def run_id(self) -> str:
+        text = "|".join(map(str, (self.scene, self.scene_key, self.width, self.height,
+                                  self.technique, self.params_json, self.code_version,
+                                  self.frames, self.warmup, self.statistics, self.samples,
+                                  self.ref_seed, metrics.VERSION)))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass
+class Plan:
+    """Validated runs and the scenes they need, ready to execute."""
+
+    runs: list[RunSpec]
+    scenes: dict[str, BuiltScene]
+    experiment_hash: str
+    experiment_path: str = ""
+    notes: list[str] = field(default_factory=list)
+
+
+def parse_overrides(values: list[str]) -> dict[str, dict]:
+    """``["pcf.k=16", ...]`` -> ``{"pcf": {"k": 16}}`` (values parsed as YAML scalars)."""
+    out: dict[str, dict] = {}
+    for item in values:
+        key, sep, raw = item.partition("=")
+        technique, dot, param = key.partition(".")
+        if not sep or not dot or not technique or not param:
+            raise cfg.ConfigError(f"--set {item}: expected technique.param=value, e.g. pcf.k=16")
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError as e:
+            problem = " ".join(str(getattr(e, "problem", None) or e).split())
+            raise cfg.ConfigError(f"--set {item}: the value is not valid YAML: {problem}") from None
+        out.setdefault(technique, {})[param] = value
+    return out
+
+
+def validate_params(technique: str, values: dict, where: str) -> dict:
+    """Validate against the technique's Params; errors name the technique and allowed names."""
+    cls = registry.get(technique)
+    try:
+        params = cls.Params(**values)
+    except ValidationError as e:
+        first = e.errors()[0]
+        name = ".".join(str(p) for p in first["loc"]) or "(parameters)"
+        allowed = ", ".join(cls.Params.model_fields)
+        if first["type"] == "extra_forbidden":
+            msg = f"{technique} has no parameter {name!r}; allowed: {allowed}"
+        else:
+            msg = f"{technique}.{name}: {first['msg'].removeprefix('Value error, ')}"
+        raise cfg.ConfigError(f"{where}: {msg}") from None
+    for name, value in params.model_dump().items():  # "1e999" and .inf validate as float inf
+        if isinstance(value, float) and not math.isfinite(value):
+            raise cfg.ConfigError(f"{where}: {technique}.{name}: must be a finite number, "
+                                  f"got {values.get(name, value)!r}")
+    return params.model_dump(mode="json")
+
+
+def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str] | None,
+              techniques: list[str] | None, overrides: dict[str, dict],
+              timing: dict | None = None) -> Plan:
+    """Everything validated up front: a bad input raises ConfigError before any output.
+
+    ``timing``: command-line ``frames``, ``warmup``, ``statistics`` replacing the
+    experiment's (see :func:`harness.config.with_timing`)."""
+    if experiment_path:
+        exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
+        exp_path = Path(experiment_path)
+        if exp.scene_file:
+            scene_file = str(exp_path.parent / exp.scene_file)
+        exp_text = exp_path.read_text()
+    registered = registry.techniques()
+    if not experiment_path:
+        exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
+        node, exp_path, exp_text = None, Path("(command line)"), ""
+    exp = cfg.with_timing(exp, **(timing or {}))
+    all_scenes = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget)
+
+    wanted_scenes = list(all_scenes) if exp.scenes == "all" else list(exp.scenes)
+    for i, name in enumerate(wanted_scenes):
+        if name not in all_scenes:
+            raise cfg.key_error(exp_path, node, ("scenes", i),
+                                f"no scene {name!r} in {scene_file}; it has "
+                                f"{', '.join(all_scenes)}")
+    if scenes:
+        for name in scenes:
+            if name not in all_scenes:
+                raise cfg.ConfigError(f"--scenes: no scene {name!r} in {scene_file}; it has "
+                                      f"{', '.join(all_scenes)}")
+        outside = [s for s in scenes if s not in wanted_scenes]
+        if experiment_path and outside:
+            raise cfg.ConfigError(f"--scenes: {', '.join(outside)} not in {exp_path} (its scenes: "
+                                  f"{', '.join(wanted_scenes)})")
+        wanted_scenes = list(dict.fromkeys(scenes))
+
+    grids: dict[str, list[cfg.Grid]] = {}
+    chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
+              else {name: cfg.Grid(curve=True) for name in registered}
+              if exp.techniques == "curves" else exp.techniques)
+    for name, g in chosen.items():
+        if name not in registered:
+            raise cfg.key_error(exp_path, node, ("techniques", name),
+                                f"unknown technique; registered: {', '.join(registered)}")
+        grids[name] = g if isinstance(g, list) else [g]
+    if techniques:
+        for name in techniques:
+            if name not in registered:
+                raise cfg.ConfigError(f"--techniques: unknown technique {name!r}; registered: "
+                                      f"{', '.join(registered)}")
+        grids = {name: grids.get(name, [cfg.Grid()]) for name in techniques}
+    for name in grids:
+        try:
+            cfg.check_name("technique", name)
+        except ValueError as e:  # a plugin's entry point: its name becomes file names
+            raise cfg.ConfigError(f"entry point {registry.GROUP}: {e}") from None
+    for name in overrides:
+        if name not in grids:
+            raise cfg.ConfigError(f"--set: technique {name!r} is not in this run "
+                                  f"({', '.join(grids)})")
+
+    built = {name: build_scene(name, all_scenes[name], Path(scene_file))
+             for name in wanted_scenes}
+    runs: list[RunSpec] = []
+    seen: set[str] = set()
+    for scene_name in wanted_scenes:
+        base = built[scene_name]
+        for width, height in exp.resolutions or [base.config.resolution]:
+            scene_at = base.with_resolution(width, height)
+            for tech, tech_grids in grids.items():
+                version = registered[tech].code_version()
+                for gi, grid in enumerate(tech_grids):
+                    grid_loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                    for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
+                                                  node):
+                        line = cfg._line_of(node, loc) if node is not None else None
+                        where = (f"{exp_path}{f':{line}' if line else ''}: "
+                                 + ".".join(map(str, loc)))
+                        params = validate_params(tech, {**combo, **overrides.get(tech, {})},
+                                                 where if experiment_path else "--set")
+                        # a moving scene's run measures each frame of its sequence once
+                        frames = scene_at.frames if scene_at.frames > 1 else exp.frames
+                        spec = RunSpec(scene_name, tech, params, width, height, frames,
+                                       exp.warmup, exp.reference.samples, exp.reference.seed,
+                                       scene_at.key, version, exp.statistics)
+                        if spec.run_id not in seen:
+                            seen.add(spec.run_id)
+                            runs.append(spec)
+    if not runs:
+        raise cfg.ConfigError(f"{exp_path}: nothing to run (no scene x technique combination)")
+    exp_hash = hashlib.sha256(
+        (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
+    return Plan(runs, built, exp_hash, str(exp_path))
+
+
+def grid_points(cls, grid: cfg.Grid, loc: tuple, path: Path, node) -> list[tuple[dict, tuple]]:
+    """A grid's parameter combinations, each with the key path that asks for it. A curve grid
+    gives the technique's quality curve from ``grid.set`` (:func:`quality_settings`), each point
+    named by its knob (``techniques.pcf.curve.k``); a technique that declares no knob runs at
+    ``set`` alone."""
+    from ..technique import quality_settings
+
+    if grid.curve is None:
+        return [(combo, loc) for combo in grid.combinations()]
+    declared = cls.quality_knobs
+    knobs = declared if grid.curve is True else grid.curve
+    for knob in knobs:
+        if knob not in declared:
+            raise cfg.key_error(path, node, loc + ("curve", knob),
+                                f"{cls.name} has no quality knob {knob!r}; its knobs: "
+                                f"{', '.join(declared) or 'none'}")
+    if not knobs:
+        return [(dict(grid.set), loc + ("curve",))]
+    return [(params, loc + ("curve", knob)) for knob, params in quality_settings(knobs, grid.set)]

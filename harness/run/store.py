@@ -1,0 +1,64 @@
+"""Storing, after scoring: a finished run's arrays, the scene's reference (once), then its row,
+inside the run folder, whose lock keeps one sweep at a time writing there."""
+
+from __future__ import annotations
+
+import datetime as dt
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from .. import config as cfg
+from .. import results
+from .plan import RunSpec
+
+
+def _now() -> str:
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def reference_array_path(scene: str, width: int, height: int, samples: int, seed: int) -> Path:
+    """Where a run directory keeps a scene's reference: one file per sampling, so a rerun with
+    other reference settings never scores against, or shows, a stale one."""
+    return Path("arrays") / scene / f"{width}x{height}" / f"reference-{samples}spp-seed{seed}.npz"
+
+
+@contextmanager
+def _exclusive(out_dir: Path):
+    """Hold DIR's lock: two sweeps appending to one results.csv would lose each other's rows.
+    The kernel drops the lock when the holder dies, so a killed run never leaves DIR locked."""
+    import fcntl
+
+    with (out_dir / ".lock").open("a+") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise cfg.ConfigError(f"{out_dir}: another shadowbench run is writing here; wait "
+                                  "for it or choose another --out") from None
+        yield
+
+
+def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.ndarray] | None,
+               reference) -> None:
+    """Store one finished run: the scene's reference arrays (once), its arrays, then the row.
+
+    Arrays are written before their row: a kill between the two leaves an unreferenced array
+    that the rerun overwrites. Every executor records through here, the client alone. A run
+    whose scene failed has no reference (None) and no arrays."""
+    if reference is not None:
+        ref_name = reference_array_path(spec.scene, spec.width, spec.height, spec.samples,
+                                        spec.ref_seed)
+        ref_path = results.inside(out_dir, ref_name)
+        row["reference_array"] = str(ref_name)
+        if not results.readable_npz(ref_path):
+            results.save_arrays(ref_path, visibility=reference.visibility,
+                                covered=reference.covered,
+                                **({"direct": reference.direct} if reference.direct is not None
+                                   else {}))
+    if arrays is not None:
+        array = ref_name.with_name(f"{spec.technique}-{spec.run_id}.npz")
+        results.save_arrays(results.inside(out_dir, array), **arrays)
+        row["array"] = str(array)
+    row["finished_at"] = _now()
+    results.record_row(out_dir, row)

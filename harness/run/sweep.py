@@ -1,0 +1,160 @@
+"""Executing a plan, the loop around the steps: pending runs go to a renderer (serial here, or
+harness.distributed's on Dask) that measures, scores and stores them; progress and manifest."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+from .. import results
+from .manifest import MANIFEST_FILE, SPACE_RESERVE, SPACE_RESERVE_BYTES, read_manifest, write_manifest
+from .measure import run_group
+from .plan import Plan, RunSpec
+from .score import failed_scene_row
+from .store import _exclusive, _now, record_run
+
+PROGRESS_FORMAT = "{desc} | {n_fmt}/{total_fmt} runs done{postfix} | {elapsed} elapsed"
+
+
+def _cost(spec: RunSpec) -> float:
+    """Relative time of a run for the estimate of the time left: runs at 1024x1024 take many
+    times those at 256x256, so a plain runs-per-second rate misjudges a multi-resolution sweep.
+    The constant is the per-run overhead, about that of a 256x256 run."""
+    return spec.width * spec.height + 256 * 256
+
+
+def _time_left(elapsed_s: float, done: float, left: float) -> str:
+    seconds = round(elapsed_s / done * left)
+    return f"about {seconds // 60}:{seconds % 60:02d} left"
+
+
+def noisy_runs(plan: Plan, out_dir: str | Path) -> list[RunSpec]:
+    """The plan's runs recorded ok in DIR but timed while the machine was busy (``noisy``)."""
+    noisy = {r["run_id"] for r in results.read_rows(out_dir)
+             if r["status"] == "ok" and r.get("noisy") == "1"}
+    return [spec for spec in plan.runs if spec.run_id in noisy]
+
+
+def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
+            progress: bool = True, renderer=None, retime_noisy: bool = False) -> int:
+    """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed).
+
+    ``retime_noisy``: then measure again the runs whose row says ``noisy`` (rendered anew, in
+    interleaved rounds among themselves; their rows are replaced: the technique's output is
+    deterministic, so only the timing and load columns change).
+
+    ``renderer(plan, pending, out_dir, context, bar)`` renders and records the pending runs,
+    yielding ``(spec, row)`` as each is recorded: :func:`render_serial` (the default) in this
+    process, or ``harness.distributed.dask_renderer(...)`` on a Dask cluster.
+
+    Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
+    at any moment leaves every finished run recorded once and no partial row; the next call
+    with the same plan skips them. Arrays are written before their row: a kill between the two
+    leaves an unreferenced array that the rerun overwrites. The next call also heals what a
+    kill leaves: it removes temporary files, marks the killed invocation ``interrupted``, and
+    renders again the runs whose stored arrays are missing or damaged."""
+    from tqdm import tqdm
+
+    from ..interrupt import raise_if_interrupted
+
+    renderer = renderer or render_serial
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out_dir):
+        read_manifest(out_dir)  # foreign files stop the run before anything changes
+        results.read_rows(out_dir)
+        results.remove_temporaries(out_dir, (results.RESULTS_FILE, MANIFEST_FILE, SPACE_RESERVE))
+        results.mark_damaged_runs(out_dir)
+        done = results.done_ids(out_dir)
+        pending = [r for r in plan.runs if r.run_id not in done]  # failed ones are retried
+        failed = 0
+        from ..gl.context import get_context
+
+        context = get_context(platform_name)
+        # the id tells this invocation's entry from others started in the same second
+        session = {"id": os.urandom(4).hex(), "started": _now(), "finished": None,
+                   "status": "running", "runs_pending": len(pending), "runs_rendered": 0}
+        results.replace_atomically(out_dir / SPACE_RESERVE,
+                                   lambda f: f.write(bytes(SPACE_RESERVE_BYTES)))
+        write_manifest(out_dir, plan, context, session)
+        bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
+                   disable=not progress, file=sys.stderr, dynamic_ncols=True,
+                   bar_format=PROGRESS_FORMAT, postfix=f"{len(pending)} to go",
+                   desc="" if pending else "nothing to render")
+        cost_left, cost_done, clock = sum(map(_cost, pending)), 0.0, time.monotonic()
+        try:
+            for spec, row in renderer(plan, pending, out_dir, context, bar):
+                raise_if_interrupted()
+                session["runs_rendered"] += 1
+                failed += row["status"] == "error"
+                cost_done += _cost(spec)
+                cost_left -= _cost(spec)
+                left = bar.total - bar.n - 1
+                bar.set_postfix_str(
+                    f"{left} to go" + (f", {failed} failed" if failed else "")
+                    + (f", {_time_left(time.monotonic() - clock, cost_done, cost_left)}"
+                       if left else ""), refresh=False)
+                bar.update(1)
+            if retime_noisy:
+                again = noisy_runs(plan, out_dir)
+                session["runs_retimed"] = len(again)
+                bar.reset(total=len(again))
+                bar.set_postfix_str("retiming the noisy runs", refresh=False)
+                for _, row in renderer(plan, again, out_dir, context, bar):
+                    failed += row["status"] == "error"
+                    bar.update(1)
+            session["status"] = "complete"
+        except KeyboardInterrupt:
+            session["status"] = "interrupted"
+            raise
+        except BaseException:
+            session["status"] = "failed"
+            raise
+        finally:
+            bar.close()
+            session["finished"] = _now()
+            write_manifest(out_dir, plan, context, session)
+            (out_dir / SPACE_RESERVE).unlink(missing_ok=True)
+    return 1 if failed else 0
+
+
+def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
+    """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
+    shared, its runs measured in interleaved rounds: :func:`run_group`), appending each row
+    as it finishes; yields (spec, row) for each. A scene whose reference or frame fails gives
+    its runs error rows, and the sweep goes on."""
+    from ..reference import compute_reference
+    from ..technique import Frame
+
+    groups: dict[tuple, list[RunSpec]] = {}
+    for spec in pending:
+        groups.setdefault((spec.scene, spec.width, spec.height, spec.samples, spec.ref_seed),
+                          []).append(spec)
+    for (scene_name, width, height, samples, ref_seed), specs in groups.items():
+        scene = plan.scenes[scene_name].with_resolution(width, height)
+        bar.set_description_str(f"{scene_name} {width}x{height}: reference")
+        frame = None
+        try:
+            reference = compute_reference(scene.at_frame(0), samples=samples, seed=ref_seed)
+            frame = Frame(scene)
+            frames, warmup = specs[0].frames, specs[0].warmup
+            scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
+        except Exception as e:  # Mitsuba or GL cannot take this scene: its runs fail
+            if frame is not None:
+                frame.release()
+            for spec in specs:
+                row = failed_scene_row(spec, e)
+                record_run(out_dir, spec, row, None, None)
+                yield spec, row
+            continue
+        try:
+            bar.set_description_str(f"{scene_name} {width}x{height}: {len(specs)} runs in rounds")
+            for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
+                                               context.renderer):
+                bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
+                record_run(out_dir, spec, row, arrays, reference)
+                yield spec, row
+        finally:
+            frame.release()
