@@ -28,6 +28,7 @@ from OpenGL import GL
 from pydantic import BaseModel, ConfigDict
 
 from . import metrics
+from .config import LIGHT_TYPES
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
@@ -160,6 +161,19 @@ def check_quality_knobs(cls: type[Technique]) -> None:
         repeated = sorted({repr(v) for v in values if values.count(v) > 1})
         if repeated:
             raise ValueError(f"{knob}: {', '.join(repeated)} listed more than once")
+
+
+def check_declined_lights(cls: type[Technique]) -> None:
+    """Check ``declines_lights``: light types of the scene format, each with a reason. Raises
+    ValueError ``"<type>: <what is wrong>"``."""
+    if not isinstance(cls.declines_lights, dict):
+        raise ValueError(f"must be a mapping {{light type: reason}}, got "
+                         f"{type(cls.declines_lights).__name__}")
+    for kind, reason in cls.declines_lights.items():
+        if kind not in LIGHT_TYPES:
+            raise ValueError(f"{kind}: not a light type; light types: {', '.join(LIGHT_TYPES)}")
+        if not isinstance(reason, str) or not reason.strip():
+            raise ValueError(f"{kind}: needs the reason, got {reason!r}")
 
 
 def quality_settings(knobs: dict[str, list], base: dict | None = None) -> list[tuple[str, dict]]:

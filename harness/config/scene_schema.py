@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, Union, get_args
 
 import numpy as np
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
@@ -107,6 +107,8 @@ class PointLight(Strict):
 
 
 Light = Annotated[Union[DirectionalLight, SpotLight, PointLight], Field(discriminator="type")]
+LIGHT_TYPES = tuple(get_args(kind.model_fields["type"].annotation)[0]
+                    for kind in (DirectionalLight, SpotLight, PointLight))
 
 
 class Array(Strict):
