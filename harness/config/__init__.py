@@ -26,11 +26,11 @@ from .yaml_source import _line_of as _line_of  # the planner names the line of a
 __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
     "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "FieldOfView", "Grid", "Lathe",
-    "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG", "MAX_YAML_NODES", "MIN_DOLLY",
-    "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed", "Plane", "PointLight",
-    "ReferenceSettings", "Scalar", "Scene", "SceneFile", "SceneObject", "Size", "Sphere",
-    "SpotLight", "SquareInt",
-    "Strict", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
+    "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",
+    "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed",
+    "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene", "SceneFile", "SceneObject",
+    "Size", "Sphere", "SpotLight", "SquareInt", "Strict", "Vec3", "check_name",
+    "check_resolution", "format_validation_error", "key_error",
     "load_experiment", "load_mesh", "load_scenes", "read_yaml", "resolve_mesh_path",
     "square_number", "with_timing",
 ]

@@ -226,11 +226,11 @@ MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
 class Motion(Strict):
     """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
     by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
-    light's position and target together; a point light's position) turns about the up axis through the centre of the
-    scene's bounds by ``light_orbit`` degrees, and the camera moves toward its target by the
-    fraction ``camera_dolly`` of its distance (negative: away). Frame t is at t / (frames - 1)
-    of each path, so the first frame is the scene as written and the last ends the paths
-    (harness/motion.py)."""
+    light's position and target together; a point light's position) turns about the up axis
+    through the centre of the scene's bounds by ``light_orbit`` degrees, and the camera moves
+    toward its target by the fraction ``camera_dolly`` of its distance (negative: away). Frame t
+    is at t / (frames - 1) of each path, so the first frame is the scene as written and the last
+    ends the paths (harness/motion.py)."""
 
     frames: int = Field(ge=2, le=1000)
     camera_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
