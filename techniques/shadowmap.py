@@ -15,13 +15,12 @@ from harness.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_light
 EMPTY_DEPTH = 3.0e38
 
 
-class LightDepthMap:
-    """A res x res linear-depth map (R32F) rendered from the scene's light."""
+class _DepthMapResources:
+    """What every light depth map holds: its framebuffer, the program drawing linear depth, and
+    the light frusta it is drawn with (``frusta``)."""
 
-    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
-        self.res = res
-        self.frustum = frustum or fit_light(frame.scene, res)
-        self.fbo = Framebuffer(res, res, (GL.GL_R32F,), depth=True)
+    def __init__(self, fbo: Framebuffer):
+        self.fbo = fbo
         self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
 
     @property
@@ -30,7 +29,25 @@ class LightDepthMap:
 
     @property
     def nonfinite(self) -> int:
-        return _nonfinite([self.frustum])
+        return int(sum(np.count_nonzero(~np.isfinite(m)) for f in self.frusta
+                       for m in (f.view, f.proj)))
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.program.release()
+
+
+class LightDepthMap(_DepthMapResources):
+    """A res x res linear-depth map (R32F) rendered from the scene's light."""
+
+    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
+        self.res = res
+        self.frustum = frustum or fit_light(frame.scene, res)
+        super().__init__(Framebuffer(res, res, (GL.GL_R32F,), depth=True))
+
+    @property
+    def frusta(self) -> list[LightFrustum]:
+        return [self.frustum]
 
     def fit(self, frame: Frame) -> None:
         self.frustum = fit_light(frame.scene, self.res)
@@ -55,25 +72,18 @@ class LightDepthMap:
                     map_res=float(self.res), light_is_ortho=f.is_ortho, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, f.view))
 
-    def release(self) -> None:
-        self.fbo.release()
-        self.program.release()
-
-
-def _nonfinite(frusta) -> int:
-    return int(sum(np.count_nonzero(~np.isfinite(m)) for f in frusta for m in (f.view, f.proj)))
-
 
 # The guard band of a point light's faces, in texels per side: half the largest
 # percentage-closer region (MAX_FOOTPRINT in pcf_samples.glsl), so a region centred on a point
 # at its face's edge still reads that face's depths, never past its edge (which would count
 # as lit: with 16 texels pcf still leaked on hard_point_ring's diagonal seams at map 1024).
 CUBE_GUARD_TEXELS = 32
-_FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
-assert len(_FACE_NAMES) == len(CUBE_AXES)
+# pass names: shadow_map_px for the face along +x, ...
+_FACE_NAMES = tuple(("p" if axis.sum() > 0 else "n") + "xyz"[int(np.abs(axis).argmax())]
+                    for axis in CUBE_AXES)
 
 
-class CubeDepthMap:
+class CubeDepthMap(_DepthMapResources):
     """A point light's depth map: six linear-depth faces (the layers of an R32F array, over one
     depth buffer), each rendered in a timed pass of its own. Each face's own 90 degrees span
     ``res`` texels; ``guard`` more texels on every side hold its neighbours' nearest
@@ -83,17 +93,12 @@ class CubeDepthMap:
         self.res, self.size = res, res + 2 * guard
         self.half_tan = self.size / res
         self.fit(frame)
-        self.fbo = Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
-                               layers=len(CUBE_AXES))
-        self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
+        super().__init__(Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
+                                     layers=len(CUBE_AXES)))
 
     @property
-    def mem_bytes(self) -> int:
-        return self.fbo.nbytes
-
-    @property
-    def nonfinite(self) -> int:
-        return _nonfinite(self.faces)
+    def frusta(self) -> list[LightFrustum]:
+        return self.faces
 
     def fit(self, frame: Frame) -> None:
         self.faces = cube_faces(frame.scene, self.size, self.half_tan)
@@ -117,10 +122,6 @@ class CubeDepthMap:
                     light_position=frame.scene.light.position, map_res=float(self.size),
                     light_is_ortho=False, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, first.view))
-
-    def release(self) -> None:
-        self.fbo.release()
-        self.program.release()
 
 
 # Depths and G-buffer positions are float32: far from the origin their rounding alone makes a
