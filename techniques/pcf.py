@@ -37,7 +37,10 @@ class PercentageCloserFiltering(Technique):
     (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006): samples far out in a large
     region get the bias their distance needs,
     which one constant cannot give for every region, scene size and map size (Reeves et al.
-    tune Bias per scene). Points behind the light or outside the map count as lit.
+    tune Bias per scene). Points behind the light or outside the map count as lit. A point
+    light gets sm's cube of six faces, each face's 90 degrees over ``res`` texels and 32 more
+    texels of its neighbours' directions on every side (half the largest region), so no
+    sample of a point near a face's edge falls off its face.
 
     ==============  ===============================================  =========  ===========
     Parameter       Meaning                                          Default    Range
