@@ -16,11 +16,11 @@ class ShadowMap(Technique):
     cone for a spot light, and for a point light a cube: six 90-degree perspective faces of
     ``res`` x ``res`` texels, each point tested in the face its direction falls in (one timed
     pass per face; ``mem_bytes`` counts all six). Map depths are linear light-space distances
-    (along the face's axis, for a cube), so ``bias`` is in scene units. The comparison reads the centre of the point's texel, up to half a texel
-    away from the point in each axis; the bias is ``bias`` plus ``slope_bias`` times the
-    receiver plane's depth slope per texel times that distance (``shadow_map.glsl``, after the
-    receiver plane of Isidoro 2006 and Schueler 2006), the rule every map technique here
-    shares.
+    (along the face's axis, for a cube), so ``bias`` is in scene units. The comparison reads
+    the centre of the point's texel, up to half a texel away from the point in each axis; the
+    bias is ``bias`` plus ``slope_bias`` times the receiver plane's depth slope per texel
+    times that distance (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and
+    Schueler 2006), the rule every map technique here shares.
 
     ==============  ================================================  =======  ===========
     Parameter       Meaning                                           Default  Range
