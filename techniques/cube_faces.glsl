@@ -7,6 +7,8 @@
 // sample past the face's own edge still reads real depths of that face instead of falling off.
 uniform sampler2DArray shadow_map;
 uniform mat4 face_views[6];
+uniform mat4 light_proj;  // the faces share it
+uniform float map_res;
 uniform vec3 light_position;
 mat4 light_view;
 int face_layer;

@@ -20,16 +20,24 @@
 // precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
 // rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
 // matters far from the origin.
+//
+// A shader that picks one of several maps per pixel (csm's cascades) defines MAP_PER_PIXEL
+// before the include and declares light_view, light_proj and map_res as globals it sets before
+// calling receiver(), and map_depth(cell), the depth of the chosen map. A point light's cube
+// (CUBE_FACES: cube_faces.glsl) is such a shader's part: there receiver() picks the face.
 #ifdef CUBE_FACES
+#define MAP_PER_PIXEL 1
 #include "cube_faces.glsl"
 #else
+void choose_face(vec3 world) {}  // light_view is already the point's
+#endif
+#ifndef MAP_PER_PIXEL
 uniform sampler2D shadow_map;
 uniform mat4 light_view;
-void choose_face(vec3 world) {}  // one map serves every point
-float map_depth(ivec2 cell) { return texelFetch(shadow_map, cell, 0).r; }
-#endif
 uniform mat4 light_proj;
 uniform float map_res;
+float map_depth(ivec2 cell) { return texelFetch(shadow_map, cell, 0).r; }
+#endif
 uniform bool light_is_ortho;
 uniform float slope_bias;
 uniform float depth_precision;  // float32 rounding of depths this far from the origin
