@@ -23,7 +23,7 @@ CASES = {
     "hard_spot_close", "hard_point_ring", "hard_point_grazing", "hard_point_seam",
 }
 RESOLUTION_LIMITED = {"hard_huge_depth_range", "hard_near_plane_crossing"}
-DIRECTIONAL_ONLY = {"gmnpr"}  # psm and lispsm warp spot lights too
+DIRECTIONAL_ONLY = {"gmnpr", "csm"}  # psm and lispsm warp spot lights too
 POINT_LIT = {"hard_point_ring", "hard_point_grazing", "hard_point_seam"}
 
 
