@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_microbench import one_frame_of
 
 ROUNDS = 10
 IMAGE_PX = 512
@@ -37,8 +38,6 @@ def ring_scene(light=None):
 
 @pytest.mark.parametrize("name", FRAME_TECHNIQUES)
 def test_ring_frame(benchmark, gl_context, name):
-    from OpenGL import GL
-
     from harness import registry
     from harness.technique import Frame, NotApplicable, reset_gl_state
 
@@ -54,13 +53,8 @@ def test_ring_frame(benchmark, gl_context, name):
         technique.prepare(frame)
         technique.update(frame)
 
-        def one_frame():
-            frame.meter.new_frame(measuring=False)
-            output = technique.render(frame)
-            GL.glFinish()
-            return output
-
-        output = benchmark.pedantic(one_frame, rounds=ROUNDS, warmup_rounds=2)
+        output = benchmark.pedantic(one_frame_of(technique, frame), rounds=ROUNDS,
+                                    warmup_rounds=2)
     finally:
         technique.release()
         frame.release()
