@@ -1,11 +1,12 @@
 """Camera and light paths of a moving scene: frame t of ``motion`` as a still scene.
 
-The camera orbits its target about its up axis, the light turns about the up axis through
-the centre of the scene's bounds (a directional light's direction; a spot light's position and
-target together, so its aim distance and cone stay the same), and the camera moves toward its
-target by a fraction of its distance. Each path is at t / (frames - 1) of its total at frame t.
-A path whose amount at frame t is zero leaves its values exactly as written, so frame 0 is the
-scene without motion, bit for bit (and shares its reference cache entry).
+The camera orbits its target about its up axis, the light turns about the up axis through the
+centre of the scene's bounds (a directional light's direction; a spot light's position and
+target together, so its aim distance and cone stay the same; a point light's position), and the
+camera moves toward its target by a fraction of its distance. Each path is at t / (frames - 1)
+of its total at frame t. A path whose amount at frame t is zero leaves its values exactly as
+written, so frame 0 is the scene without motion, bit for bit (and shares its reference cache
+entry).
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ def light_at(light, motion: cfg.Motion, up, centre, t: int):
     turn = rotation(up, degrees)
     if isinstance(light, cfg.DirectionalLight):
         return light.model_copy(update={"direction": _turned(light.direction, 0.0, turn)})
+    if isinstance(light, cfg.PointLight):
+        return light.model_copy(update={"position": _turned(light.position, centre, turn)})
     return light.model_copy(update={"position": _turned(light.position, centre, turn),
                                     "target": _turned(light.target, centre, turn)})
 

@@ -32,19 +32,27 @@ class MeshPart:
 
 @dataclass(frozen=True)
 class Light:
-    """The light in world space. ``direction`` is the way light travels (unit)."""
+    """The light in world space. ``direction`` is the way light travels (unit): a directional
+    light's, or a spot light's axis; None for a point light, which shines every way."""
 
-    type: str
-    direction: np.ndarray
-    position: np.ndarray | None = None  # spot only
+    type: str  # directional, spot or point
+    direction: np.ndarray | None
+    position: np.ndarray | None = None  # spot and point
     fov_deg: float | None = None  # spot only: full cone angle
-    aim_distance: float = 1.0  # spot only: |target - position|
+    aim_distance: float = 1.0  # spot: |target - position|; point: to the camera's target
+
+    @property
+    def positional(self) -> bool:
+        """Whether light leaves one point (spot and point): rays, volumes and maps start
+        there, and irradiance falls off with the squared distance."""
+        return self.type != "directional"
 
     @property
     def power_scale(self) -> float:
-        """Spot intensity is scaled by the aim distance squared, so the surface it aims at
-        receives about the irradiance a directional light of the same power gives."""
-        return self.aim_distance ** 2 if self.type == "spot" else 1.0
+        """A positional light's intensity is scaled by its aim distance squared, so the surface
+        it aims at (a spot's target; what the camera looks at, for a point light) receives
+        about the irradiance a directional light of the same power gives."""
+        return self.aim_distance ** 2 if self.positional else 1.0
 
     def inside_cone(self, points: np.ndarray) -> np.ndarray:
         """Spot light: whether each point lies inside the cone (its full angle ``fov_deg``)."""
@@ -123,7 +131,7 @@ class BuiltScene:
                 raise IndexError(f"frame {t} of the still scene {self.name!r}")
             return self
         config = motion_paths.scene_at(self.config, self.bounds.mean(axis=0), t)
-        frame = BuiltScene(self.name, config, self.parts, _light(config.light),
+        frame = BuiltScene(self.name, config, self.parts, _light(config),
                            scene_key(config, self.source), self.source)
         for name in _GEOMETRY:  # the same triangles: computed once per sequence
             if name in self.__dict__:
@@ -195,11 +203,16 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
     return parts
 
 
-def _light(light) -> Light:
+def _light(scene: cfg.Scene) -> Light:
+    light = scene.light
     if isinstance(light, cfg.DirectionalLight):
         d = np.asarray(light.direction, dtype=np.float64)
         return Light("directional", d / np.linalg.norm(d))
     pos = np.asarray(light.position, dtype=np.float64)
+    if isinstance(light, cfg.PointLight):
+        # a point light inside what the camera looks at keeps its intensity as written
+        aim = float(np.linalg.norm(np.asarray(scene.camera.target, dtype=np.float64) - pos))
+        return Light("point", None, pos, aim_distance=aim or 1.0)
     d = np.asarray(light.target, dtype=np.float64) - pos
     distance = float(np.linalg.norm(d))
     return Light("spot", d / distance, pos, light.fov, distance)
@@ -219,7 +232,7 @@ def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
 
 
 def build_scene(name: str, scene: cfg.Scene, source: Path | None = None) -> BuiltScene:
-    return BuiltScene(name, scene, build_parts(scene, source), _light(scene.light),
+    return BuiltScene(name, scene, build_parts(scene, source), _light(scene),
                       scene_key(scene, source), source)
 
 

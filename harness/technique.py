@@ -28,6 +28,7 @@ from OpenGL import GL
 from pydantic import BaseModel, ConfigDict
 
 from . import metrics
+from .config import LIGHT_TYPES
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
@@ -76,9 +77,24 @@ class Technique:
     # The technique whose cost the others' is divided by at equal error (analysis.summary, the
     # dashboard's overview): one registered technique says so, the harness names none.
     baseline: ClassVar[bool] = False
+    # Light types (harness.scene.Light.type) the technique does not render, each with the
+    # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
+    # ``prepare``). A point light shines every way, so a technique built on one light frustum
+    # declines it unless it says otherwise (``declines_lights = {}``).
+    declines_lights: ClassVar[dict[str, str]] = {
+        "point": "it declares no point-light path (a point light shines every way, past any "
+                 "one light frustum)"}
 
     def __init__(self, params: TechniqueParams):
         self.params = params
+
+    @classmethod
+    def check_light(cls, light) -> None:
+        """Raise :class:`NotApplicable` naming the reason when the technique declines the
+        type of ``light`` (a :class:`harness.scene.Light`)."""
+        reason = cls.declines_lights.get(light.type)
+        if reason:
+            raise NotApplicable(f"{cls.name} does not treat a {light.type} light: {reason}")
 
     def prepare(self, frame: "Frame") -> None:
         """Allocate GL resources and upload what depends on geometry."""
@@ -145,6 +161,19 @@ def check_quality_knobs(cls: type[Technique]) -> None:
         repeated = sorted({repr(v) for v in values if values.count(v) > 1})
         if repeated:
             raise ValueError(f"{knob}: {', '.join(repeated)} listed more than once")
+
+
+def check_declined_lights(cls: type[Technique]) -> None:
+    """Check ``declines_lights``: light types of the scene format, each with a reason. Raises
+    ValueError ``"<type>: <what is wrong>"``."""
+    if not isinstance(cls.declines_lights, dict):
+        raise ValueError(f"must be a mapping {{light type: reason}}, got "
+                         f"{type(cls.declines_lights).__name__}")
+    for kind, reason in cls.declines_lights.items():
+        if kind not in LIGHT_TYPES:
+            raise ValueError(f"{kind}: not a light type; light types: {', '.join(LIGHT_TYPES)}")
+        if not isinstance(reason, str) or not reason.strip():
+            raise ValueError(f"{kind}: needs the reason, got {reason!r}")
 
 
 def quality_settings(knobs: dict[str, list], base: dict | None = None) -> list[tuple[str, dict]]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, Union, get_args
 
 import numpy as np
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
@@ -99,7 +99,16 @@ class SpotLight(Strict):
         return self
 
 
-Light = Annotated[Union[DirectionalLight, SpotLight], Field(discriminator="type")]
+class PointLight(Strict):
+    """An omnidirectional light at ``position``: no direction, cone or target."""
+
+    type: Literal["point"]
+    position: Vec3
+
+
+Light = Annotated[Union[DirectionalLight, SpotLight, PointLight], Field(discriminator="type")]
+LIGHT_TYPES = tuple(get_args(kind.model_fields["type"].annotation)[0]
+                    for kind in (DirectionalLight, SpotLight, PointLight))
 
 
 class Array(Strict):
@@ -217,11 +226,11 @@ MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
 class Motion(Strict):
     """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
     by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
-    light's position and target together) turns about the up axis through the centre of the
-    scene's bounds by ``light_orbit`` degrees, and the camera moves toward its target by the
-    fraction ``camera_dolly`` of its distance (negative: away). Frame t is at t / (frames - 1)
-    of each path, so the first frame is the scene as written and the last ends the paths
-    (harness/motion.py)."""
+    light's position and target together; a point light's position) turns about the up axis
+    through the centre of the scene's bounds by ``light_orbit`` degrees, and the camera moves
+    toward its target by the fraction ``camera_dolly`` of its distance (negative: away). Frame t
+    is at t / (frames - 1) of each path, so the first frame is the scene as written and the last
+    ends the paths (harness/motion.py)."""
 
     frames: int = Field(ge=2, le=1000)
     camera_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
