@@ -48,8 +48,8 @@ class ShadowVolumes(Technique):
     at the near plane and the clip polygon drawn as a front face (computed per light-facing
     triangle in double precision, ``sv_volumes.near_clip_polygons``). ``zfail`` counts the
     faces behind the surface instead and closes each volume with a near cap (the light-facing
-    triangles) and, for a spot light, a far cap (the others pushed to infinity), so it is right
-    wherever the camera is; it is later work, not the paper's: Carmack's reverse (2000), made
+    triangles) and, for a spot or point light, a far cap (the others pushed to infinity), so
+    it is right wherever the camera is; it is later work, not the paper's: Carmack's reverse (2000), made
     robust by Everitt and Kilgard (2002). Volumes are extruded to infinity (w = 0); z-fail
     draws them with depth clamping (one of Everitt and Kilgard's two ways; their infinite far
     plane would give depths other than the G-buffer's), so what lies beyond the far plane
@@ -115,6 +115,9 @@ class ShadowVolumes(Technique):
     quality_knobs = {"buffer": ("stencil", "alpha", "screen"),
                      "method": ("zpass", "nearclip", "zfail"),
                      "mask_res": ("quarter", "half", "full")}
+    # a point light's volumes are extruded from the point as a spot light's (caps included);
+    # it only has no cone
+    declines_lights = {}
 
     class Params(TechniqueParams):
         buffer: Literal["stencil", "alpha", "screen"] = "stencil"
@@ -163,8 +166,8 @@ class ShadowVolumes(Technique):
         in the volume pass, every frame. Only diagnostics (the fill count, volume counts,
         warnings; untimed) are counted again when the light or the camera moved."""
         light = frame.scene.light
-        light_key = (light.direction.tobytes(),
-                     b"" if light.position is None else light.position.tobytes())
+        light_key = tuple(b"" if v is None else v.tobytes()
+                          for v in (light.direction, light.position))
         view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
         if light_key == self.volume_light and np.array_equal(view_proj, self.view_proj):
             return

@@ -1,6 +1,7 @@
 // Shared by the GPU-extruded shadow volumes. Vertices and face planes are in the part's model
-// space; the light comes in the same space, as a homogeneous point: (position, 1) for a spot
-// light, (-direction, 0) for a directional one. So one plane test serves both lights, and a
+// space; the light comes in the same space, as a homogeneous point: (position, 1) for a spot or
+// point light (volumes never look at a spot's cone: a point light is a spot without one),
+// (-direction, 0) for a directional light. So one plane test serves every light, and a
 // rigid per-part transform (model) needs no change to the vertex data.
 uniform vec4 light;
 uniform mat4 model;
@@ -12,7 +13,7 @@ bool faces_light(vec4 plane) {
 }
 
 // p pushed away from the light to infinity (w = 0; Everitt and Kilgard 2002): along the
-// light's direction for a directional light, along p - position for a spot light.
+// light's direction for a directional light, along p - position for a spot or point light.
 vec4 at_infinity(vec3 p) {
     return vec4(p * light.w - light.xyz, 0.0);
 }

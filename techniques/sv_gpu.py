@@ -10,7 +10,8 @@ What is uploaded depends on the geometry alone, in each part's model space:
 Stored per edge: two triangles (first the quad's half that is the whole side for a
 directional light, whose far corners coincide, then the other half), six vertices without
 an index buffer, so the vertex shader runs a known number of times: 3 per edge for a
-directional light, 6 for a spot light; 3 per face for the caps and the per-triangle volumes.
+directional light, 6 for a positional one (spot or point); 3 per face for the caps and the
+per-triangle volumes.
 
 The frame's light reaches the shaders as a uniform, so everything that depends on it runs on
 the GPU inside the volume pass. :meth:`GpuVolumes.diagnostics` recounts in NumPy what that pass built, for
@@ -154,9 +155,9 @@ class GpuVolumes:
             program.use().set(light=light_vector(light), model=IDENTITY, view_proj=view_proj,
                               caps=self.caps, increments_first=self.increments_first,
                               **fragment_uniforms)
-        spot = light.type != "directional"
+        positional = light.positional
         if not self.increments_first:
-            self._edges(range(len(self.edge_ranges)), spot)
+            self._edges(range(len(self.edge_ranges)), positional)
             self._faces(self.cap_program, self.faces, self.face_ranges, self.caps)
             self._faces(self.polygon_program, self.polygons, self.polygon_ranges, True)
             return
@@ -169,17 +170,17 @@ class GpuVolumes:
             GL.glEnable(GL.GL_CULL_FACE)
             for culled_front in (not front_increments, front_increments):  # increments first
                 GL.glCullFace(GL.GL_FRONT if culled_front else GL.GL_BACK)
-                self._edges([first], spot)
+                self._edges([first], positional)
                 self._faces(self.cap_program, self.faces, self.face_ranges[first:first + 1],
                             self.caps)
             GL.glDisable(GL.GL_CULL_FACE)
 
-    def _edges(self, parts, spot: bool) -> None:
+    def _edges(self, parts, positional: bool) -> None:
         """Each part's edge quads: for a directional light only their first halves."""
         ranges = [self.edge_ranges[i] for i in parts]
         self.edge_program.use()
         _multi_draw(self.edges, [r.first for r in ranges],
-                    [r.count if spot else r.count // 2 for r in ranges])
+                    [r.count if positional else r.count // 2 for r in ranges])
 
     @staticmethod
     def _faces(program: Program, vertices: VertexArray, ranges: list[PartRange],
@@ -188,19 +189,19 @@ class GpuVolumes:
             program.use()
             _multi_draw(vertices, [r.first for r in ranges], [r.count for r in ranges])
 
-    def vertex_count(self, spot: bool) -> int:
+    def vertex_count(self, positional: bool) -> int:
         """Vertex shader runs of one :meth:`draw`: what the edge mesh implies."""
-        edges = sum(r.count for r in self.edge_ranges) // (1 if spot else 2)
+        edges = sum(r.count for r in self.edge_ranges) // (1 if positional else 2)
         caps = sum(r.count for r in self.face_ranges) if self.caps else 0
         return (edges + caps) * (2 if self.increments_first else 1) + self.polygons.count
 
     def diagnostics(self, light: Light) -> tuple[dict, list[str]]:
         """What :meth:`draw` builds for ``light``, recounted in double precision (untimed):
         silhouette edges, volumes and the triangles that are not degenerate (each side a
-        triangle for a directional light, a quad of two for a spot light); and the warnings
-        of ``sv_volumes.build``."""
-        spot = light.type != "directional"
-        sides = 2 if spot else 1
+        triangle for a directional light, a quad of two for a spot or point light); and the
+        warnings of ``sv_volumes.build``."""
+        positional = light.positional
+        sides = 2 if positional else 1
         counts = dict.fromkeys(("silhouette_edges", "volume_count", "volume_triangles"), 0)
         warnings = []
         closed = iter(self.edge_meshes)
@@ -212,20 +213,20 @@ class GpuVolumes:
                 _, _, face, twin_face = next(closed)
                 lit = sv_volumes.light_facing(mesh.vertices[mesh.faces], light) > 0
                 edges = int((lit[face] != lit[twin_face]).sum())
-                caps = int(lit.sum()) + (int((~lit).sum()) if spot else 0)
+                caps = int(lit.sum()) + (int((~lit).sum()) if positional else 0)
                 counts["silhouette_edges"] += edges
                 counts["volume_count"] += (volumes := 1)
                 counts["volume_triangles"] += sides * edges + (caps if self.caps else 0)
             else:
                 volumes = len(sv_volumes.toward_light(mesh, light))
                 counts["volume_count"] += volumes
-                counts["volume_triangles"] += volumes * (3 * sides
-                                                         + ((1 + spot) if self.caps else 0))
+                caps = 1 + positional if self.caps else 0
+                counts["volume_triangles"] += volumes * (3 * sides + caps)
             notes = sv_volumes.part_notes(mesh, light, single=one,
                                           nested_counts=self.nested_counts, volumes=volumes)
             if notes:
                 warnings.append(f"{name}: " + "; ".join(notes))
-        return {**counts, "volume_vertices": self.vertex_count(spot)}, warnings
+        return {**counts, "volume_vertices": self.vertex_count(positional)}, warnings
 
     def release(self) -> None:
         for resource in (self.edges, self.faces, self.polygons, *self.programs):

@@ -1,7 +1,7 @@
 // One shadow volume per triangle (a mesh that is not closed, or a state machine that must not
 // see a ray enter one volume twice): the triangle turned toward the light, its three sides
-// extruded to infinity and, for z-fail, its near cap (the triangle) and, for a spot light,
-// its far cap (the triangle at infinity). A triangle edge-on to the light casts none.
+// extruded to infinity and, for z-fail, its near cap (the triangle) and, for a spot or point
+// light, its far cap (the triangle at infinity). A triangle edge-on to the light casts none.
 // With increments_first (the alpha and screen state machine, Roettger et al. section 4.2)
 // the faces that increment the count come out before those that decrement it; faces leave
 // in primitive order, so volume by volume.
@@ -34,17 +34,17 @@ void main() {
         near[k] = to_clip(vec4(p[k], 1.0));
         far[k] = to_clip(at_infinity(p[k]));
     }
-    bool spot = light.w > 0.5;  // a directional light's far corners coincide
+    bool positional = light.w > 0.5;  // a directional light's far corners coincide
     vec4 faces[8][3];
     int count = 0;
     for (int k = 0; k < 3; ++k) {
         int a = k, b = (k + 1) % 3;
         faces[count++] = vec4[3](near[b], near[a], far[a]);
-        if (spot) faces[count++] = vec4[3](near[b], far[a], far[b]);
+        if (positional) faces[count++] = vec4[3](near[b], far[a], far[b]);
     }
     if (caps) {
         faces[count++] = near;
-        if (spot) faces[count++] = vec4[3](far[2], far[1], far[0]);
+        if (positional) faces[count++] = vec4[3](far[2], far[1], far[0]);
     }
     for (int round = 0; round < (increments_first ? 2 : 1); ++round) {
         for (int i = 0; i < count; ++i) {

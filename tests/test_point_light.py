@@ -154,16 +154,21 @@ def test_seam_pixels_are_not_wrong_beyond_the_edge_band(technique, evaluate):
     assert error.max() < 0.1, np.sort(error)[-5:]
 
 
-@pytest.mark.xfail(strict=True, reason="sv point light: after the GPU-volume merge")
-def test_shadow_volumes_of_a_point_light_are_the_visibility_by_hand(plate, evaluate):
-    """sv extrudes its volumes from the point (a spot light without the cone): at most 0.5 %
-    of the compared pixels differ from the slab test by hand. Catches volumes extruded along
-    an axis instead of away from the point, a missing cap, a point light declined."""
+@pytest.mark.parametrize("method", ["zfail", "zpass", "nearclip"])
+@pytest.mark.parametrize("buffer", ["stencil", "alpha", "screen"])
+def test_shadow_volumes_of_a_point_light_are_the_visibility_by_hand(buffer, method, plate,
+                                                                    evaluate):
+    """sv extrudes its volumes from the point (a spot light without the cone), in every
+    buffer and by every method (nearclip in alpha and screen through the CPU-built volumes):
+    at most 0.5 % of the compared pixels differ from the slab test by hand. Catches the point
+    taken as a direction (w = 0 in ``sv_gpu.light_vector``: 7 % wrong in every combination,
+    seen failing) and a point light declined. Not the far cap: no camera ray here leaves a
+    volume through it (the closed-box test below needs it)."""
     scene, _, _, mask, by_hand = plate
-    e = evaluate(scene, "sv")
+    e = evaluate(scene, "sv", {"buffer": buffer, "method": method})
     assert e.row["status"] == "ok", e.row["error"]
     wrong = mask & (np.abs(e.visibility - by_hand) > 0.5)
-    assert 100 * wrong.sum() / mask.sum() <= 0.5
+    assert 100 * wrong.sum() / mask.sum() <= 0.5, 100 * wrong.sum() / mask.sum()
 
 
 CLOSED_BOX = {
