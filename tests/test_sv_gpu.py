@@ -95,11 +95,14 @@ def _differences(gpu, cpu) -> tuple[int, int]:
 @pytest.mark.parametrize("path, name", SCENES, ids=[name for _, name in SCENES])
 def test_gpu_volumes_give_the_cpu_built_volumes_v(path, name, frames):
     """Every shipped scene and hard case (camera inside a volume, far from the origin, a spot
-    light's far cap, open and degenerate meshes), every combination the GPU draws: V and the
+    light's far cap, open and degenerate meshes, a point light in every direction: the
+    hard_point_* cases, equal bit for bit), every combination the GPU draws: V and the
     fill count of the CPU-built volumes, bit for bit except the few samples of
     STAGE_DIFFERENCES, and the same volume counts and warnings. Catches an extrusion sign
     flipped, a quad not swapped where the twin face is the lit one (the side winds inward),
-    caps or far caps missing, or faces drawn out of the state machine's order."""
+    caps or far caps missing (a point light's far cap left out of sv_volumes.build: seen
+    failing on all three hard_point_* cases), or faces drawn out of the state machine's
+    order."""
     frame = frames(path, name)
     for params in GPU_COMBOS:
         key = (name, "-".join(params.values()))
@@ -122,15 +125,15 @@ def test_geometry_shader_volumes_equal_the_cpu_built_ones(path, name, frames, mo
         assert differences == (0, 0), params
 
 
-def _implied_vertices(scene, spot: bool, caps: bool) -> int:
+def _implied_vertices(scene, positional: bool, caps: bool) -> int:
     """Vertex shader runs the edge mesh implies, counted with trimesh from the parts: 3 per
-    edge of a closed part (6 under a spot light: both halves of its quad), 3 per face for its
-    caps (z-fail), 3 per face of an open part (the geometry shader's input)."""
+    edge of a closed part (6 under a spot or point light: both halves of its quad), 3 per face
+    for its caps (z-fail), 3 per face of an open part (the geometry shader's input)."""
     total = 0
     for part in scene.parts:
         mesh = trimesh.Trimesh(part.vertices, part.faces)  # merges duplicate vertices
         if mesh.is_watertight:
-            total += (6 if spot else 3) * len(mesh.edges_unique) + (3 * len(mesh.faces) if caps
+            total += (6 if positional else 3) * len(mesh.edges_unique) + (3 * len(mesh.faces) if caps
                                                                     else 0)
         else:
             total += 3 * len(mesh.faces)
@@ -138,20 +141,21 @@ def _implied_vertices(scene, spot: bool, caps: bool) -> int:
 
 
 @pytest.mark.parametrize("path, name", [(SCENE_FILE, "box_plane"), (SCENE_FILE, "pins"),
-                                        (SV_SCENES, "sv_spot_far_cap")],
-                         ids=["box_plane", "pins", "sv_spot_far_cap"])
+                                        (SV_SCENES, "sv_spot_far_cap"),
+                                        (HARD_CASES, "hard_point_ring")],
+                         ids=["box_plane", "pins", "sv_spot_far_cap", "hard_point_ring"])
 @pytest.mark.parametrize("method", ["zfail", "zpass"])
 def test_volume_pass_vertex_invocations_are_the_edge_meshs(path, name, method, frames):
     """The volume pass's pipeline statistics count the edge mesh's vertices and no more.
     Catches a directional light drawing both halves of every quad (the second is always
-    degenerate), z-pass drawing the caps, or the volumes drawn twice."""
+    degenerate), a point light drawing only the first halves, z-pass drawing the caps, or the
+    volumes drawn twice."""
     frame = frames(path, name)
     if frame.counters_missing:
         pytest.skip(frame.counters_missing)
     _render(frame, {"method": method})
     (volumes,) = [p for p in frame.meter.passes() if p.name == "volumes"]
-    expected = _implied_vertices(frame.scene, frame.scene.light.type == "spot",
-                                 method == "zfail")
+    expected = _implied_vertices(frame.scene, frame.scene.light.positional, method == "zfail")
     assert volumes.vertex_invocations == expected
 
 
