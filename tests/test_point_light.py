@@ -210,6 +210,22 @@ def test_a_point_light_inside_a_closed_box_runs_and_leaves_everything_outside_da
         assert (v == 0).all() if technique == "sm" else (v == 0).mean() > 0.98, technique
 
 
+@pytest.mark.parametrize("buffer", ["stencil", "alpha", "screen"])
+def test_shadow_volumes_of_a_light_inside_a_closed_box_shadow_all_outside(buffer, evaluate):
+    """sv's z-fail (its default) in every buffer: with the light inside the box no face is
+    lit, so the box's volume is its far cap alone, every face pushed to infinity, and every
+    compared pixel outside the box is in shadow, V = 0, with the warning that the light is
+    inside. Catches the far cap not drawn (sv_cap.vert.glsl: all lit, seen failing). z-pass
+    and nearclip are not asked: the camera is in this shadow, and nearclip's clip polygons
+    come from the lit faces, of which there are none."""
+    scene = build_scene("boxed", config.Scene.model_validate(CLOSED_BOX))
+    e = evaluate(scene, "sv", {"buffer": buffer})
+    assert e.row["status"] == "ok", e.row["error"]
+    assert e.mask.sum() > 500
+    assert (e.visibility[e.mask] == 0).all()
+    assert "the light is inside this closed mesh" in e.row["warnings"]
+
+
 def point_scene(**light) -> dict:
     scene = yaml.safe_load(yaml.safe_dump(CLOSED_BOX))
     scene["light"] = {"type": "point", "position": [0, 0, 3], **light}
