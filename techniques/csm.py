@@ -13,7 +13,7 @@ import pyrender
 from pydantic import Field, create_model
 
 from harness.gl.reduction import CoveredRange
-from harness.technique import Frame, NotApplicable, ShadowOutput, Technique, TechniqueParams
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
 from .shadowmap import EMPTY_DEPTH, LightDepthMap, depth_precision
@@ -175,11 +175,12 @@ class CascadedShadowMap(Technique):
     # quality knob: how many slices share the view depth range (more cascades, more maps)
     quality_knobs = {"splits": (1, 2, 4)}
     Params = _Params
+    declines_lights = {
+        "spot": "cascades split a directional light's map; a spot light has one frustum",
+        "point": "cascades split a directional light's map; a point light shines every way, "
+                 "past any one light frustum"}
 
     def prepare(self, frame: Frame) -> None:
-        if frame.scene.light.type != "directional":
-            raise NotApplicable("cascades split a directional light's map; a spot light has "
-                                "one frustum")
         p = self.params
         self.maps = [LightDepthMap(frame, p.res) for _ in range(p.splits)]
         sdsm = p.fit == "sdsm"

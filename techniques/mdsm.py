@@ -118,6 +118,8 @@ class MultipleDepthShadowMap(Technique):
     # quality knobs: the map size (to 2048: at 4096 the selection pass alone costs make bench a
     # tenth of its time), the depths and the samples per cell
     quality_knobs = {"res": (256, 1024, 2048), "n": (1, 2, 3), "k": (1, 4, 9)}
+    declines_lights = {"point": "it has no cube-map path: its selection pass and PCF(k, n) read "
+                                "square windows of one light frustum's map"}
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

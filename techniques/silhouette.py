@@ -99,6 +99,8 @@ class SilhouetteMap(Technique):
     # quality knob: the map size (the silhouette map has the depth map's), in factor-4 steps
     # that keep make bench within its 10 minutes
     quality_knobs = {"res": (256, 1024, 4096)}
+    declines_lights = {"point": "it has no cube-map path: its silhouette points and edge "
+                                "reconstruction live in one light frustum's texel grid"}
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

@@ -129,8 +129,9 @@ def turned(frame, degrees):
 def test_stabilised_cascades_keep_v_when_the_camera_changes_by_less_than_a_texel(
         change, gl_context, scene_at):
     """The cascades fitted to a camera moved (0.6 of cascade 0's texel sideways) or turned
-    (by as much at its sphere's centre), shading the same world points (the first camera's G-buffer): stabilised, V
-    is bit for bit the same wherever the point keeps its cascade (flicker 0 there), although
+    (by as much at its sphere's centre), shading the same world points (the first camera's
+    G-buffer): stabilised, V is bit for bit the same wherever the point keeps its cascade
+    (flicker 0 there), although
     some cascade's map moved by whole texels; unstabilised, V changes on some shadow edges.
     Catches a snap to other than whole texels (e.g. no rounding of the centre) or a radius that
     follows the camera."""
