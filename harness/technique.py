@@ -8,9 +8,12 @@ G-buffer pixels: its last pass draws V into the frame's visibility target
 
 The harness calls ``prepare(frame)`` once per run, then ``update(frame)``, then ``render(frame)``
 for each frame. On a moving scene (``motion`` in the scene file) the frame moves to each
-sequence frame's camera and light (:meth:`Frame.move_to`: same geometry, new G-buffer) and the
-harness calls ``update(frame)`` before every measured ``render``, so the technique keeps its GL
-resources across the sequence and recomputes only what depends on the view or the light.
+sequence frame's camera, light and objects (:meth:`Frame.move_to`: the scene's vertex buffer
+holds the moved triangles, the G-buffer is rendered again) and the harness calls
+``update(frame)`` before every measured ``render``, so the technique keeps its GL resources
+across the sequence and recomputes only what depends on the view, the light or the geometry.
+Geometry a technique builds once in ``prepare`` from ``frame.scene.parts`` follows moving
+objects through ``frame.scene.part_poses`` (each part's rigid transform from those parts).
 """
 
 from __future__ import annotations
@@ -168,7 +171,7 @@ class Frame:
         self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
-        self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
+        self.geometry = self._scene_vertex_array()
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
@@ -178,6 +181,10 @@ class Frame:
         self.counters_missing = pass_measure.pipeline_statistics_missing()
         self.meter = self.new_meter()
         self.arrays = self._camera_pass()
+
+    def _scene_vertex_array(self):
+        s = self.scene
+        return scene_vertex_array(s.triangles, s.face_normals, s.face_albedo)
 
     def _camera_pass(self):
         self.gbuffer.render(self.geometry, self.camera.view_proj)
@@ -189,12 +196,17 @@ class Frame:
         return self.sequence.frames
 
     def move_to(self, index: int) -> None:
-        """Put the frame at frame ``index`` of its moving scene: that camera and light, the
-        G-buffer rendered and read again; the geometry, targets and timers stay."""
+        """Put the frame at frame ``index`` of its moving scene: that camera, light and
+        geometry (the scene's vertex buffer uploaded again where objects moved, as an
+        animation system does before the frame's passes), the G-buffer rendered and read
+        again; the targets and timers stay."""
         if index == self.index:
             return
-        self.scene = self.sequence.at_frame(index)
+        previous, self.scene = self.scene, self.sequence.at_frame(index)
         self.index = index
+        if self.scene.parts is not previous.parts:
+            self.geometry.release()
+            self.geometry = self._scene_vertex_array()
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
         self.arrays = self._camera_pass()
 
