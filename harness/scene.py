@@ -71,7 +71,7 @@ class BuiltScene:
     key: str  # content hash of the scene description (mesh file contents included)
     source: Path | None = field(default=None, compare=False)
     # a frame of a moving scene whose objects moved: each part's rigid transform (P, 4, 4) from
-    # the parts as written (None: none moved), for geometry built once from those
+    # the moving scene's parts as written (None: none moved)
     poses: np.ndarray | None = field(default=None, compare=False)
 
     @property
@@ -105,14 +105,6 @@ class BuiltScene:
         """Axis-aligned bounds of all geometry, (2, 3) float64: min row, max row."""
         v = self.triangles.reshape(-1, 3)
         return np.stack([v.min(0), v.max(0)]).astype(np.float64)
-
-    @property
-    def part_poses(self) -> np.ndarray:
-        """Each part's rigid transform from the parts as written, (P, 4, 4) float64: how far
-        its objects have moved at this frame (identities for a still scene and frame 0)."""
-        if self.poses is None:
-            return np.tile(np.eye(4), (len(self.parts), 1, 1))
-        return self.poses
 
     def with_resolution(self, width: int, height: int) -> "BuiltScene":
         new_config = self.config.model_copy(update={"resolution": (width, height)})

@@ -13,7 +13,7 @@ holds the moved triangles, the G-buffer is rendered again) and the harness calls
 ``update(frame)`` before every measured ``render``, so the technique keeps its GL resources
 across the sequence and recomputes only what depends on the view, the light or the geometry.
 Geometry a technique builds once in ``prepare`` from ``frame.scene.parts`` follows moving
-objects through ``frame.scene.part_poses`` (each part's rigid transform from those parts).
+objects through :attr:`Frame.part_poses` (each part's rigid transform from those parts).
 """
 
 from __future__ import annotations
@@ -194,6 +194,14 @@ class Frame:
     def frames(self) -> int:
         """Frames of the scene's sequence (1 for a still scene)."""
         return self.sequence.frames
+
+    @property
+    def part_poses(self) -> np.ndarray:
+        """Each part's rigid transform (P, 4, 4) float64 from where it was at frame 0, the
+        geometry ``prepare`` saw: how far moving objects have gone (identities when none
+        moved, and always on a still scene, even one that is a moved frame of another)."""
+        poses = self.scene.poses if self.sequence.config.motion else None
+        return np.tile(np.eye(4), (len(self.scene.parts), 1, 1)) if poses is None else poses
 
     def move_to(self, index: int) -> None:
         """Put the frame at frame ``index`` of its moving scene: that camera, light and

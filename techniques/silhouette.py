@@ -190,7 +190,7 @@ class SilhouetteMap(Technique):
             self.depth_map.render(frame)
         with frame.measure("silhouette_map"):
             self.silhouette_fbo.clear(EMPTY_POINT)
-            self.edge_mesh.place(frame.scene.part_poses)  # where moving objects are now
+            self.edge_mesh.place(frame.part_poses)  # where moving objects are now
             self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
         with frame.measure("shading"):
             self._shade(frame, self.shading)

@@ -82,7 +82,7 @@ class EdgeMesh:
     never holds a coordinate as large as the scene's distance from the world origin
     (hard_far_from_origin, 1e5 away: over half a texel of error in world coordinates). Each
     edge carries its part, and :meth:`place` uploads each part's rigid motion (moving objects:
-    ``BuiltScene.part_poses``) in that frame, which the vertex stage applies to the edge's
+    ``Frame.part_poses``) in that frame, which the vertex stage applies to the edge's
     endpoints and to its faces' normals."""
 
     def __init__(self, adjacency: EdgeAdjacency):

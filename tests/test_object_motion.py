@@ -14,6 +14,9 @@ from harness.scene import build_scene
 from harness.technique import Frame, NotApplicable, reset_gl_state
 
 TECHNIQUES = list(registry.techniques())
+# maps coarser than the 64 x 48 image, so that what each technique adds to its depth map (the
+# silhouette map's edges, mdsm's depths) decides pixels
+COARSE = {"sm": {"res": 32}, "silhouette": {"res": 32}, "mdsm": {"res": 32}, "pcf": {"res": 32}}
 
 # box_plane's plane and a box named "caster", off centre so that an orbit moves it
 STILL = {"resolution": [64, 48],
@@ -144,14 +147,16 @@ def render(technique, frame):
         reset_gl_state()
 
 
-def sequence_and_still(name, k):
+def sequence_and_still(name, k, settings=None):
     """V of ``name`` at frame ``k`` of MOVING, reached by preparing at frame 0 and moving
     frame by frame, V of a fresh run on the still scene of frame k, V at frame 0 and both
-    frames (released by the caller); None where the technique does not apply."""
+    frames, each run with ``settings``; None where the technique does not apply. And the
+    resources, for the caller to release."""
     cls = registry.get(name)
     moving = scene(MOVING)
     frame, still = Frame(moving), Frame(moving.at_frame(k))
-    moved, fresh = cls(cls.Params()), cls(cls.Params())
+    params = cls.Params(**(settings or {}))
+    moved, fresh = cls(params), cls(params)
     resources = (moved, fresh, frame, still)
     try:
         moved.prepare(frame)
@@ -180,7 +185,7 @@ def test_a_moved_caster_renders_what_a_still_scene_with_it_there_does(name, gl_c
     light frustum or warp body fitted to frame 0's bounds, and geometry built in prepare
     that ignores the parts' poses (silhouette's edge mesh; sv's volumes, keyed on the light
     only, hence xfail until its GPU volumes apply the poses)."""
-    result, resources = sequence_and_still(name, 2)
+    result, resources = sequence_and_still(name, 2, COARSE.get(name))
     try:
         if result is None:
             pytest.skip(f"{name} does not apply to a directional light")
@@ -203,12 +208,12 @@ def references():
 @pytest.mark.parametrize("name", ["sm", "silhouette"])
 def test_a_moved_frame_matches_its_own_reference(name, references, gl_context):
     """The reference is traced per frame from the moved triangles: frame 2's differs from
-    frame 0's where the box's shadow moved (over 100 pixels), and sm's and silhouette's V at
+    frame 0's where the box's shadow moved (over 30 pixels), and sm's and silhouette's V at
     frame 2 is close to frame 2's reference (mean error under 0.02), far closer than to frame
     0's. Catches a reference built from the parts as written (or read from frame 0's cache
     entry), which would leave frame 2's V far from its reference."""
     zero, two = references
-    assert np.count_nonzero(np.abs(zero.visibility - two.visibility) > 0.5) > 100
+    assert np.count_nonzero(np.abs(zero.visibility - two.visibility) > 0.5) > 30
     result, resources = sequence_and_still(name, 2)
     try:
         followed, _, _, frame, _ = result
