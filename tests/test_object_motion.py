@@ -12,6 +12,7 @@ from harness import cli, config, metrics, registry
 from harness.reference import compute_reference
 from harness.scene import build_scene
 from harness.technique import Frame, NotApplicable, reset_gl_state
+from test_motion import render
 
 TECHNIQUES = list(registry.techniques())
 # maps coarser than the 64 x 48 image, so that what each technique adds to its depth map (the
@@ -137,14 +138,6 @@ def test_bad_object_motion_is_exit_2_one_line_naming_file_and_key(change, key, s
 
 
 # --- techniques follow the moving casters ----------------------------------------------------
-
-
-def render(technique, frame):
-    frame.meter.new_frame(True)
-    try:
-        return technique.render(frame).visibility
-    finally:
-        reset_gl_state()
 
 
 def sequence_and_still(name, k, settings=None):
