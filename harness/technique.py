@@ -84,13 +84,14 @@ class Technique:
         self.params = params
 
     def prepare(self, frame: "Frame") -> None:
-        """Allocate GL resources and upload what depends on geometry."""
+        """Allocate GL resources and upload what depends on geometry (where objects move,
+        as at frame 0, then moved by :attr:`Frame.part_poses`)."""
 
     def update(self, frame: "Frame") -> None:
-        """Recompute what depends on the frame's camera or light (a light frustum's fit, a
-        warp, silhouette edges, shadow volumes): called after ``prepare`` and, on a moving
-        scene, before every measured ``render``; it must give the same state when called again
-        with nothing moved.
+        """Recompute what depends on the frame's camera, light or moving objects (a light
+        frustum's fit, a warp, silhouette edges, shadow volumes): called after ``prepare`` and,
+        on a moving scene, before every measured ``render``; it must give the same state when
+        called again with nothing moved.
 
         Timing: on a moving scene the work an engine pays every frame goes inside
         ``frame.measure(name)`` here, and counts in the frame's time as a pass of its own;
@@ -163,7 +164,7 @@ class Frame:
     """Everything a technique may use for one scene at one resolution, owned by the harness.
 
     For a moving scene ``scene`` is the frame of its sequence the frame is at (a still scene:
-    that frame's camera and light), starting at frame 0; :meth:`move_to` moves it."""
+    that frame's camera, light and objects), starting at frame 0; :meth:`move_to` moves it."""
 
     def __init__(self, scene: BuiltScene):
         self.sequence = scene  # the scene as given, moving or still
