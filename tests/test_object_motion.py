@@ -29,6 +29,9 @@ STILL = {"resolution": [64, 48],
 # the caster spins a quarter turn and orbits 60 degrees about the vertical through the origin
 MOVING = {**STILL, "motion": {"frames": 3, "objects": [
     {"object": "caster", "spin": 90, "orbit": 60, "centre": [0, 0, 0]}]}}
+# the same under a spot light: silhouette's edge test uses each moved endpoint's direction
+SPOT_LIT = {**MOVING, "light": {"type": "spot", "position": [-3, -4, 5], "target": [0, 0, 0],
+                                "fov": 90}}
 
 
 def scene(data, **objects_motion):
@@ -140,13 +143,13 @@ def test_bad_object_motion_is_exit_2_one_line_naming_file_and_key(change, key, s
 # --- techniques follow the moving casters ----------------------------------------------------
 
 
-def sequence_and_still(name, k, settings=None):
-    """V of ``name`` at frame ``k`` of MOVING, reached by preparing at frame 0 and moving
+def sequence_and_still(name, k, settings=None, data=MOVING):
+    """V of ``name`` at frame ``k`` of ``data``, reached by preparing at frame 0 and moving
     frame by frame, V of a fresh run on the still scene of frame k, V at frame 0 and both
     frames, each run with ``settings``; None where the technique does not apply. And the
     resources, for the caller to release."""
     cls = registry.get(name)
-    moving = scene(MOVING)
+    moving = scene(data)
     frame, still = Frame(moving), Frame(moving.at_frame(k))
     params = cls.Params(**(settings or {}))
     moved, fresh = cls(params), cls(params)
@@ -170,18 +173,20 @@ def sequence_and_still(name, k, settings=None):
     pytest.param(n, marks=pytest.mark.xfail(
         strict=True, reason="sv follows moving casters after the GPU-volume merge"))
     if n == "sv" else n for n in TECHNIQUES])
-def test_a_moved_caster_renders_what_a_still_scene_with_it_there_does(name, gl_context):
-    """Frame 2 of MOVING (the box spun and orbited), reached by preparing at frame 0 and
-    updating at each frame, gives exactly the V of a fresh run on the still scene with the box
+@pytest.mark.parametrize("data", [MOVING, SPOT_LIT], ids=["directional", "spot"])
+def test_a_moved_caster_renders_what_a_still_scene_with_it_there_does(name, data, gl_context):
+    """Frame 2 of MOVING and SPOT_LIT (the box spun and orbited), reached by preparing at
+    frame 0 and updating at each frame, gives exactly the V of a fresh run on the still scene with the box
     at frame 2's place, and that V differs from frame 0's (the shadow moved). Catches a
     Frame.move_to that leaves the vertex buffer (every map and the G-buffer) at frame 0, a
-    light frustum or warp body fitted to frame 0's bounds, and geometry built in prepare
-    that ignores the parts' poses (silhouette's edge mesh; sv's volumes, keyed on the light
-    only, hence xfail until its GPU volumes apply the poses)."""
-    result, resources = sequence_and_still(name, 2, COARSE.get(name))
+    light frustum or warp body fitted to frame 0's bounds, geometry built in prepare that
+    ignores the parts' poses (silhouette's edge mesh; sv's volumes, keyed on the light only,
+    hence xfail until its GPU volumes apply the poses), and poses applied again to a moved
+    frame run as a still scene (whose parts are already moved)."""
+    result, resources = sequence_and_still(name, 2, COARSE.get(name), data)
     try:
         if result is None:
-            pytest.skip(f"{name} does not apply to a directional light")
+            pytest.skip(f"{name} does not apply to this light")
         followed, still_v, first, frame, still = result
         assert np.array_equal(frame.arrays.position, still.arrays.position)
         np.testing.assert_array_equal(followed, still_v)
