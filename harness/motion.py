@@ -13,10 +13,9 @@ scene without motion, bit for bit (and shares its reference cache entry).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
-
-from dataclasses import replace
 
 from . import config as cfg
 
