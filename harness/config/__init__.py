@@ -16,7 +16,7 @@ from .mesh_files import load_mesh, resolve_mesh_path
 from .scene_schema import (MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule, Coordinate,
                            Cylinder, DirectionalLight, FieldOfView, LIGHT_TYPES, Lathe, Light,
                            MeshFile,
-                           Motion, Placed, Plane, PointLight, Scene, SceneFile, SceneObject, Size,
+                           Motion, ObjectMotion, Placed, Plane, PointLight, Scene, SceneFile, SceneObject, Size,
                            Sphere, SpotLight, SquareInt, Strict, Vec3, check_resolution,
                            load_scenes, square_number)
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, format_validation_error,
@@ -27,7 +27,7 @@ __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
     "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "FieldOfView", "Grid", "Lathe",
     "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",
-    "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed",
+    "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "ObjectMotion", "Placed",
     "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene", "SceneFile", "SceneObject",
     "Size", "Sphere", "SpotLight", "SquareInt", "Strict", "Vec3", "check_name",
     "check_resolution", "format_validation_error", "key_error",
