@@ -34,7 +34,27 @@ def _names(option: str, text: str | None) -> list[str] | None:
     if not names:
         raise ConfigError(f"{option} {text!r}: names nothing; give comma-separated names, or "
                           "leave the option out for all")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigError(f"{option} {text!r}: names {', '.join(repeated)} more than once")
     return names
+
+
+def _check_out(text: str) -> None:
+    """``--out`` must be, or be creatable as, a folder of our own: a ConfigError naming
+    ``--out`` otherwise, before anything is planned or written."""
+    out = Path(text).resolve()
+    if out.parts[1:2] in (("proc",), ("sys",)):
+        raise ConfigError(f"--out {text}: is under /{out.parts[1]}, the kernel's files, not a "
+                          "place for results")
+    existing = next(p for p in (out, *out.parents) if os.path.lexists(p))
+    if not existing.is_dir():
+        what = "is a file" if existing == out else f"lies under {existing}, a file"
+        raise ConfigError(f"--out {text}: {what}, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        reason = ("Read-only file system" if os.statvfs(existing).f_flag & os.ST_RDONLY
+                  else "permission denied")
+        raise ConfigError(f"--out {text}: cannot write in {existing}: {reason}")
 
 
 def cmd_list(args) -> int:
@@ -112,12 +132,14 @@ def cmd_run(args) -> int:
         raise ConfigError("--scheduler goes with --executor dask")
     if not 1 <= args.workers <= MAX_WORKERS:
         raise ConfigError(f"--workers: must be in [1, {MAX_WORKERS}], got {args.workers}")
+    _check_out(args.out)
     plan = run.plan_runs(
         experiment_path=args.experiment, scene_file=args.scene_file,
         scenes=_names("--scenes", args.scenes),
         techniques=_names("--techniques", args.techniques),
         overrides=run.parse_overrides(args.set or []),
-        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
+        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
+                "max_runs": args.max_runs})
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
@@ -183,6 +205,7 @@ def cmd_reference(args) -> int:
             check_resolution(args.resolution)
         except ValueError as e:
             raise ConfigError(f"--resolution: {e}") from None
+    _check_out(args.out)
     scene = load_scene(args.scene, args.scene_file)
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)
@@ -257,6 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--statistics", metavar="METHOD",
                    help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
                         "(default: the experiment's, else order)")
+    q.add_argument("--max-runs", metavar="N",
+                   help="refuse a plan of more runs (default: the experiment's, else 5000)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -20,10 +20,15 @@ from .measure import BATCH_BYTES, BATCH_RUNS
 from .plan import Plan
 
 
+# a read-only look: without it `git status` takes .git/index.lock to refresh the index, and a
+# sweep's manifest would collide with the user's own git commands in the checkout
+GIT = ("git", "--no-optional-locks")
+
+
 def _git_commit() -> str:
     try:
         here = Path(__file__).resolve().parent
-        return subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+        return subprocess.run([*GIT, "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
                               text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -64,7 +69,7 @@ def _version(module: str) -> str:
 def _git_dirty() -> bool | None:
     try:
         here = Path(__file__).resolve().parent
-        out = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+        out = subprocess.run([*GIT, "-C", str(here), "status", "--porcelain",
                               "--untracked-files=no"], check=False, capture_output=True,
                              text=True, timeout=10)
         return bool(out.stdout.strip()) if out.returncode == 0 else None
