@@ -12,7 +12,7 @@ are in :mod:`harness.config.limits`.
 from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, load_experiment,
                                 with_timing)
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV, NAME_PATTERN
-from .mesh_files import load_mesh, resolve_mesh_path
+from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
 from .scene_schema import (MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule, Coordinate,
                            Cylinder, DirectionalLight, FieldOfView, Lathe, Light, MeshFile,
                            Motion, Placed, Plane, Scene, SceneFile, SceneObject, Size, Sphere,
@@ -29,6 +29,6 @@ __all__ = [
     "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed", "Plane", "ReferenceSettings",
     "Scalar", "Scene", "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
-    "load_experiment", "load_mesh", "load_scenes", "read_yaml", "resolve_mesh_path",
-    "square_number", "with_timing",
+    "MeshParts", "cache_root", "load_experiment", "load_scenes", "mesh_parts", "read_yaml",
+    "resolve_mesh_path", "square_number", "with_timing",
 ]
