@@ -20,10 +20,17 @@
 // precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
 // rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
 // matters far from the origin.
+//
+// A shader that picks one of several maps per pixel (csm's cascades) defines MAP_PER_PIXEL
+// before the include and declares light_view, light_proj and map_res as globals it sets before
+// calling receiver(), and map_depth(cell), the depth of the chosen map.
+#ifndef MAP_PER_PIXEL
 uniform sampler2D shadow_map;
 uniform mat4 light_view;
 uniform mat4 light_proj;
 uniform float map_res;
+float map_depth(ivec2 cell) { return texelFetch(shadow_map, cell, 0).r; }
+#endif
 uniform bool light_is_ortho;
 uniform float slope_bias;
 uniform float depth_precision;  // float32 rounding of depths this far from the origin
@@ -111,7 +118,7 @@ bool map_cell(vec2 texel, out ivec2 cell) {
 float depth_test(vec2 texel, float depth, float bias) {
     ivec2 t;
     if (!map_cell(texel, t)) return 1.0;
-    return depth - bias - depth_precision > texelFetch(shadow_map, t, 0).r ? 0.0 : 1.0;
+    return depth - bias - depth_precision > map_depth(t) ? 0.0 : 1.0;
 }
 
 // Williams' test of the receiver against the texel holding map position `at`, with the

@@ -8,10 +8,10 @@ import numpy as np
 from OpenGL import GL
 
 from harness.gl.framebuffer import Framebuffer
-from harness.gl.geometry import VertexArray
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from . import sv_volumes
+from . import sv_cpu, sv_volumes
+from .sv_gpu import GpuVolumes
 
 # Mask channel and the level between shadow and lit that the normalised mask is snapped at.
 CHANNEL = {"stencil": 0, "alpha": 3, "screen": 0}
@@ -77,6 +77,15 @@ class ShadowVolumes(Technique):
     of the screen size" took 10.2 to 23.6 Hz at 1024^2, beyond its half-resolution 15.7 Hz,
     so a quarter along each axis).
 
+    The volumes are extruded on the GPU every frame, inside the timed ``volumes`` pass, from
+    geometry uploaded in ``prepare`` (``sv_gpu``: each closed mesh's edges as degenerate quads
+    with both faces' planes, McGuire et al. 2003; per-triangle volumes by a geometry shader),
+    so a still scene and a moving light pay the same passes. The near-plane clip polygons are
+    computed on the CPU in that pass, every frame; nearclip in the alpha and screen buffers
+    builds all its volumes there on the CPU (``sv_cpu``), since the GPU volumes cannot put a
+    volume's clip polygons between its increments and its decrements. The normalisation
+    rectangles and the visibility pass shade covered pixels only.
+
     Volume fragments are counted untimed, with the depth test off, whenever the light or the
     camera moved (once on a still scene): they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
@@ -118,8 +127,10 @@ class ShadowVolumes(Technique):
         p = self.params
         self.front_increments = p.method != "zfail"
         self.meshes = [sv_volumes.clean(part) for part in frame.scene.parts]
-        self.volumes = VertexArray(np.zeros((0, 5), np.float32), (4, 1))
-        self.volume_light = self.view_proj = None  # what the volumes were last built for
+        nested = p.buffer == "stencil" or p.normalize == "max"
+        self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
+        self.volumes, self.near_clip = self._volume_geometry(frame)
+        self.volume_light = self.view_proj = None  # what the diagnostics were last counted for
         divisor = MASK_DIVISOR[p.mask_res]
         self.shares_scene_depth = divisor == 1
         self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
@@ -127,68 +138,47 @@ class ShadowVolumes(Technique):
         if self.shares_scene_depth:
             frame.share_scene_depth(self.mask)
         self.scene_program = self.shader(__file__, "gbuffer.vert.glsl", "sv_fill.frag.glsl")
-        self.volume_program = self.shader(__file__, "sv_volume.vert.glsl", "sv_volume.frag.glsl")
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "sv_visibility.frag.glsl")
 
-    def update(self, frame: Frame) -> None:
-        """Volumes for the frame's light and camera, rebuilt and uploaded only when what they
-        depend on moved, as an engine would (timed, ``volume_build``, in every frame of a
-        moving scene, near zero where nothing moved): the light always; the camera for
-        near-plane clip polygons and for the alpha and screen buffers' draw order. Then the
-        fill count (untimed) when the light or the camera moved."""
+    def _volume_geometry(self, frame: Frame):
+        """The volumes and, for nearclip, the near-plane clip polygons: what the volume pass
+        draws. The volumes are extruded on the GPU (``sv_gpu``), except for nearclip in the
+        alpha and screen buffers, built on the CPU inside the volume pass every frame (see
+        ``sv_cpu``); the clip polygons are computed on the CPU there too."""
         p = self.params
+        if p.method == "nearclip" and p.buffer != "stencil":
+            return sv_cpu.CpuVolumes(frame.scene.parts, self.meshes, p), None
+        volumes = GpuVolumes([part.name for part in frame.scene.parts], self.meshes,
+                             self.single, caps=p.method == "zfail",
+                             increments_first=p.buffer != "stencil",
+                             nested_counts=p.buffer == "stencil" or p.normalize == "max")
+        near_clip = (sv_cpu.NearClipPolygons(self.meshes, self.single)
+                     if p.method == "nearclip" else None)
+        return volumes, near_clip
+
+    def update(self, frame: Frame) -> None:
+        """Nothing an engine computes: all that depends on the light and the camera is drawn
+        in the volume pass, every frame. Only diagnostics (the fill count, volume counts,
+        warnings; untimed) are counted again when the light or the camera moved."""
         light = frame.scene.light
         light_key = (light.direction.tobytes(),
                      b"" if light.position is None else light.position.tobytes())
         view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
-        light_moved = light_key != self.volume_light
-        camera_moved = self.view_proj is None or not np.array_equal(view_proj, self.view_proj)
-        self.view_proj = view_proj
-        with frame.measure("volume_build"):
-            if light_moved:
-                self.volume_set = sv_volumes.build(
-                    frame.scene.parts, light, caps=p.method == "zfail",
-                    nested_counts=p.buffer == "stencil" or p.normalize == "max",
-                    grouping=p.volumes, meshes=self.meshes)
-                self.volume_light = light_key
-            if light_moved or (camera_moved and (p.method == "nearclip" or p.buffer != "stencil")):
-                vertices, self.near_clip_triangles = self._vertices(frame)
-                self.volumes.update(vertices)
-        if light_moved or camera_moved:
-            self.warnings = list(self.volume_set.warnings)
-            redraw = p.buffer == "screen" and self.shares_scene_depth
-            self.fill = self._count_fill()
-            self.fill.update(near_clip_triangles=self.near_clip_triangles,
-                             scene_passes=1 + (not self.shares_scene_depth) + redraw)
-
-    def _vertices(self, frame: Frame) -> tuple[np.ndarray, int]:
-        """Volume vertices (N, 5): homogeneous world position and 0, or a near-plane clip
-        polygon's normalised device x, y, 0, 1 and 1; triangles in the state machine's order
-        for alpha and screen. And the number of clip-polygon triangles."""
-        volumes = self.volume_set
-        triangles = volumes.triangles.astype(np.float64)
-        owner = volumes.volume_of
-        increments = (sv_volumes.camera_facing(triangles, self.view_proj)
-                      == self.front_increments)
-        rows = np.concatenate([triangles, np.zeros(triangles.shape[:2] + (1,))], axis=2)
-        near = np.zeros((0, 3, 2))
-        if self.params.method == "nearclip":
-            near, near_owner = sv_volumes.near_clip_polygons(volumes, frame.scene.light,
-                                                             self.view_proj)
-            near_rows = np.zeros(near.shape[:2] + (5,))
-            near_rows[..., :2], near_rows[..., 3:] = near, 1.0
-            rows = np.concatenate([rows, near_rows])
-            owner = np.concatenate([owner, near_owner])
-            increments = np.concatenate([increments, np.ones(len(near), bool)])  # front faces
-        if self.params.buffer != "stencil":
-            rows = rows[sv_volumes.draw_order(owner, increments)]
-        return rows.reshape(-1, 5), len(near)
+        if light_key == self.volume_light and np.array_equal(view_proj, self.view_proj):
+            return
+        self.volume_light, self.view_proj = light_key, view_proj
+        self.fill = self._count_fill(light)
+        counts, self.warnings = self.volumes.diagnostics(light)
+        redraw = self.params.buffer == "screen" and self.shares_scene_depth
+        self.fill.update(counts, scene_passes=1 + (not self.shares_scene_depth) + redraw)
+        self.fill.setdefault("near_clip_triangles",
+                             self.near_clip.triangles if self.near_clip else 0)
 
     # ---- untimed fill-rate counts -------------------------------------------------------
 
-    def _count_fill(self) -> dict:
+    def _count_fill(self, light) -> dict:
         self.mask.bind()
         GL.glColorMask(False, False, False, False)
         GL.glDisable(GL.GL_STENCIL_TEST)
@@ -196,16 +186,18 @@ class ShadowVolumes(Technique):
         GL.glDisable(GL.GL_CULL_FACE)
         GL.glDisable(GL.GL_DEPTH_TEST)
         self._zfail_depth(True)
-        self.volume_program.use().set(view_proj=self.view_proj)
-        volume_frags = count_fragments(self.volumes.draw)
+        volume_frags = count_fragments(lambda: self._draw_volumes(light))
         self._zfail_depth(False)
         GL.glColorMask(True, True, True, True)
-        triangles = len(self.volume_set.triangles)
         return {"volume_frags": volume_frags,
-                "volume_triangles": triangles, "volume_vertices": 3 * triangles,
-                "volume_count": self.volume_set.volume_count,
-                "silhouette_edges": self.volume_set.silhouette_edges,
                 "mask_width": self.mask.width, "mask_height": self.mask.height}
+
+    def _draw_volumes(self, light, **fragment_uniforms) -> None:
+        self.volumes.draw(light, self.view_proj, front_increments=self.front_increments,
+                          **fragment_uniforms)
+        if self.near_clip:
+            self.near_clip.draw(light, self.view_proj, front_increments=self.front_increments,
+                                **fragment_uniforms)
 
     # ---- passes ---------------------------------------------------------------------------
 
@@ -246,7 +238,7 @@ class ShadowVolumes(Technique):
         self.scene_program.use().set(view_proj=self.view_proj)
         frame.draw_scene()
 
-    def _volume_pass(self) -> None:
+    def _volume_pass(self, frame: Frame) -> None:
         p = self.params
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(False)
@@ -258,7 +250,7 @@ class ShadowVolumes(Technique):
         # its own surface).
         reversed_test = p.method == "zfail" and p.buffer != "stencil"
         GL.glDepthFunc(GL.GL_GEQUAL if reversed_test else GL.GL_LESS)
-        program = self.volume_program.use().set(view_proj=self.view_proj)
+        colours = {}
         if p.buffer == "stencil":
             GL.glColorMask(False, False, False, False)
             GL.glEnable(GL.GL_STENCIL_TEST)
@@ -278,14 +270,16 @@ class ShadowVolumes(Technique):
             GL.glBlendFunc(GL.GL_DST_COLOR, GL.GL_SRC_COLOR)
             double, halve = (1.0,) * 4, (0.25,) * 4
             increment, decrement = (halve, double) if p.normalize == "max" else (double, halve)
-            program.set(front_increments=self.front_increments, increment_colour=increment,
-                        decrement_colour=decrement)
-        self.volumes.draw()
+            colours = dict(increment_colour=increment, decrement_colour=decrement)
+        self._draw_volumes(frame.scene.light, **colours)
         self._zfail_depth(False)
 
     def _rectangle(self, frame: Frame, colour: float) -> None:
+        """A full-window rectangle, on covered pixels only where the mask has the scene's
+        depth (a smaller mask is magnified bilinearly, which reads the texels beside covered
+        ones too)."""
         self.fill_program.use().set(fill_colour=(colour,) * 4)
-        frame.draw_fullscreen()
+        frame.draw_fullscreen(covered_only=self.shares_scene_depth)
 
     def _normalize_pass(self, frame: Frame) -> None:
         """Turn the count into a 0/1 (stencil, rectangles) or 1/2 / 1 (max) mask."""
@@ -338,7 +332,7 @@ class ShadowVolumes(Technique):
         lit_threshold = 0.75 if p.buffer != "stencil" and p.normalize == "max" else 0.5
         program.set(shadow_mask=self.mask.colors[0].bind(unit), mask_channel=CHANNEL[p.buffer],
                     lit_threshold=lit_threshold, magnify=p.mask_res != "full")
-        frame.draw_fullscreen()
+        frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
@@ -349,7 +343,7 @@ class ShadowVolumes(Technique):
         with frame.measure("volumes"):
             if self.shares_scene_depth:
                 self._clear_mask()
-            self._volume_pass()
+            self._volume_pass(frame)
         with frame.measure("stencil_mask" if p.buffer == "stencil" else "normalize"):
             self._normalize_pass(frame)
         if p.buffer == "screen" and self.shares_scene_depth:
@@ -364,6 +358,7 @@ class ShadowVolumes(Technique):
                             warnings=self.warnings)
 
     def release(self) -> None:
-        for resource in (self.volumes, self.mask, self.scene_program, self.volume_program,
+        for resource in (self.volumes, self.near_clip, self.mask, self.scene_program,
                          self.fill_program, self.visibility_program):
-            resource.release()
+            if resource:
+                resource.release()

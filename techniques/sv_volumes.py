@@ -82,7 +82,7 @@ def clean(part: MeshPart) -> CleanMesh:
     return CleanMesh(unique, faces, closed, convex, notes)
 
 
-def _light_facing(tri: np.ndarray, light: Light) -> np.ndarray:
+def light_facing(tri: np.ndarray, light: Light) -> np.ndarray:
     """Cosine between each triangle's normal and the direction to the light: > 0 faces it."""
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     to_light = (-light.direction[None, :] if light.type == "directional"
@@ -124,17 +124,56 @@ def winding_number(mesh: CleanMesh, point: np.ndarray) -> float:
     return float(2 * np.arctan2(numerator, denominator).sum() / (4 * np.pi))
 
 
-def silhouette_volume(mesh: CleanMesh, light: Light, *, caps: bool):
-    """One volume for a closed mesh: (triangles (T, 3, 4), number of silhouette edges, its
-    light-facing triangles)."""
-    v, f = mesh.vertices, mesh.faces
-    lit = _light_facing(v[f], light) > 0
-    n = len(v)
+def directed_edges(mesh: CleanMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A closed mesh's directed edges a -> b, three per face in face order (edge k of face i
+    is row 3 i + k), and the row of each one's twin b -> a."""
+    f, n = mesh.faces, len(mesh.vertices)
     a = f.reshape(-1)
     b = f[:, [1, 2, 0]].reshape(-1)
     keys = a * n + b
     order = np.argsort(keys)
-    twin = order[np.searchsorted(keys, b * n + a, sorter=order)]  # closed: every edge has one
+    return a, b, order[np.searchsorted(keys, b * n + a, sorter=order)]  # closed: all have one
+
+
+def toward_light(mesh: CleanMesh, light: Light) -> np.ndarray:
+    """The triangles not edge-on to the light, each turned toward it keeping its first
+    vertex in place (T, 3, 3): the casters of per-triangle volumes."""
+    tri = mesh.vertices[mesh.faces]
+    facing = light_facing(tri, light)
+    keep = np.abs(facing) > DEGENERATE
+    tri = tri[keep]
+    away = facing[keep] < 0
+    tri[away] = tri[away][:, [0, 2, 1]]
+    return tri
+
+
+def one_volume(mesh: CleanMesh, grouping: str, nested_counts: bool) -> bool:
+    """Whether a mesh is drawn as one silhouette volume (see :func:`build`)."""
+    return mesh.closed and grouping != "polygon" and (
+        grouping == "silhouette" or nested_counts or mesh.convex)
+
+
+def part_notes(mesh: CleanMesh, light: Light, *, single: bool, nested_counts: bool,
+               volumes: int) -> list[str]:
+    """What a part's volumes warn about (``volumes``: its number of per-triangle volumes)."""
+    notes = list(mesh.notes)
+    if (mesh.closed and light.type != "directional"
+            and abs(winding_number(mesh, light.position)) > 0.5):
+        notes.append("the light is inside this closed mesh: all outside it is shadowed")
+    if single and not (nested_counts or mesh.convex):
+        notes.append("non-convex mesh drawn as one volume: a ray may enter it twice "
+                     "and saturate the alpha/screen state machine")
+    if not single and not mesh.closed:
+        notes.append(f"not closed (open or non-manifold edges): {volumes} per-triangle volumes")
+    return notes
+
+
+def silhouette_volume(mesh: CleanMesh, light: Light, *, caps: bool):
+    """One volume for a closed mesh: (triangles (T, 3, 4), number of silhouette edges, its
+    light-facing triangles)."""
+    v, f = mesh.vertices, mesh.faces
+    lit = light_facing(v[f], light) > 0
+    a, b, twin = directed_edges(mesh)
     edge_lit = np.repeat(lit, 3)
     silhouette = edge_lit & ~edge_lit[twin]
     parts = [_sides(v[a[silhouette]], v[b[silhouette]], light)]
@@ -148,13 +187,7 @@ def silhouette_volume(mesh: CleanMesh, light: Light, *, caps: bool):
 def polygon_volumes(mesh: CleanMesh, light: Light, *, caps: bool):
     """One volume per triangle not edge-on to the light: (triangles, volume index of each,
     number of volumes, the triangles turned toward the light)."""
-    tri = mesh.vertices[mesh.faces]
-    facing = _light_facing(tri, light)
-    keep = np.abs(facing) > DEGENERATE
-    tri = tri[keep]
-    # orient every triangle toward the light, keeping the first vertex in place
-    away = facing[keep] < 0
-    tri[away] = tri[away][:, [0, 2, 1]]
+    tri = toward_light(mesh, light)
     count = len(tri)
     pieces, owners = [], []
     for k in range(3):
@@ -185,19 +218,11 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: boo
     triangles, owners, casters, caster_volume, warnings = [], [], [], [], []
     volumes = edges = 0
     for part, mesh in zip(parts, meshes or map(clean, parts)):
-        notes = list(mesh.notes)
         if not len(mesh.faces):
             warnings.append(f"{part.name}: no non-degenerate triangles; casts no shadow")
             continue
-        if (mesh.closed and light.type != "directional"
-                and abs(winding_number(mesh, light.position)) > 0.5):
-            notes.append("the light is inside this closed mesh: all outside it is shadowed")
-        single = mesh.closed and grouping != "polygon" and (
-            grouping == "silhouette" or nested_counts or mesh.convex)
+        single = one_volume(mesh, grouping, nested_counts)
         if single:
-            if not (nested_counts or mesh.convex):
-                notes.append("non-convex mesh drawn as one volume: a ray may enter it twice "
-                             "and saturate the alpha/screen state machine")
             tri, n_edges, lit = silhouette_volume(mesh, light, caps=caps)
             triangles.append(tri)
             owners.append(np.full(len(tri), volumes))
@@ -205,6 +230,7 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: boo
             caster_volume.append(np.full(len(lit), volumes))
             volumes += 1
             edges += n_edges
+            count = 1
         else:
             tri, owner, count, lit = polygon_volumes(mesh, light, caps=caps)
             triangles.append(tri)
@@ -212,9 +238,8 @@ def build(parts: list[MeshPart], light: Light, *, caps: bool, nested_counts: boo
             casters.append(lit)
             caster_volume.append(np.arange(count) + volumes)
             volumes += count
-            if not mesh.closed:
-                notes.append(f"not closed (open or non-manifold edges): {count} per-triangle "
-                             "volumes")
+        notes = part_notes(mesh, light, single=single, nested_counts=nested_counts,
+                           volumes=count)
         if notes:
             warnings.append(f"{part.name}: " + "; ".join(notes))
     tri = np.concatenate(triangles) if triangles else np.zeros((0, 3, 4))
@@ -278,7 +303,28 @@ def _clip(polygon: np.ndarray, lines: np.ndarray) -> np.ndarray:
     return polygon
 
 
-def near_clip_polygons(volumes: VolumeSet, light: Light,
+def light_casters(meshes: list[CleanMesh], single: list[bool],
+                  light: Light) -> tuple[np.ndarray, np.ndarray]:
+    """The casters of every volume, (C, 3, 3) float64 counter-clockwise seen from the light,
+    and the volume of each (C,), volumes numbered as :func:`build` numbers them: what
+    :func:`near_clip_polygons` clips, without building the volumes."""
+    casters, owners, volumes = [np.zeros((0, 3, 3))], [np.zeros(0, np.int64)], 0
+    for mesh, one in zip(meshes, single):
+        if not len(mesh.faces):
+            continue
+        if one:
+            tri = mesh.vertices[mesh.faces]
+            casters.append(tri[light_facing(tri, light) > 0])
+            owners.append(np.full(len(casters[-1]), volumes))
+            volumes += 1
+        else:
+            casters.append(toward_light(mesh, light))
+            owners.append(volumes + np.arange(len(casters[-1])))
+            volumes += len(casters[-1])
+    return np.concatenate(casters), np.concatenate(owners)
+
+
+def near_clip_polygons(casters: np.ndarray, caster_volume: np.ndarray, light: Light,
                        view_proj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each volume clipped at the camera's near plane (Roettger et al. section 3.2): where the
     near plane lies inside a volume, the clip polygon, as counter-clockwise triangles of
@@ -288,9 +334,9 @@ def near_clip_polygons(volumes: VolumeSet, light: Light,
     precision: on the near plane (z_ndc = -1) a plane p . X >= 0 is the line
     (p . inverse(view_proj)) . (x, y, -1, 1) >= 0. A non-convex volume's clip polygon is the
     union of its casters' pieces, with the nesting its count has."""
-    if not len(volumes.casters):
+    if not len(casters):
         return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
-    planes = _volume_planes(volumes.casters, light) @ np.linalg.inv(view_proj)
+    planes = _volume_planes(casters, light) @ np.linalg.inv(view_proj)
     lines = np.stack([planes[..., 0], planes[..., 1], planes[..., 3] - planes[..., 2]], axis=-1)
     corner_sides = lines[..., :2] @ NEAR_RECTANGLE.T + lines[..., 2:]  # (C, 4 lines, 4 corners)
     reaches = ~(corner_sides < 0).all(axis=2).any(axis=1)
@@ -299,7 +345,7 @@ def near_clip_polygons(volumes: VolumeSet, light: Light,
         polygon = _clip(NEAR_RECTANGLE, lines[caster])
         for k in range(1, len(polygon) - 1):
             triangles.append(polygon[[0, k, k + 1]])
-            owners.append(volumes.caster_volume[caster])
+            owners.append(caster_volume[caster])
     if not triangles:
         return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
     return np.array(triangles), np.array(owners)

@@ -1,0 +1,246 @@
+"""Shadow volumes extruded on the GPU every frame, from geometry uploaded once (a helper of
+the ``sv`` technique, not a technique).
+
+What is uploaded depends on the geometry alone, in each part's model space:
+- a closed part drawn as one silhouette volume: its edge mesh, each edge a degenerate quad
+  carrying the planes of both faces it joins (McGuire et al. 2003, "Fast, practical and
+  robust shadows"), which ``sv_edge.vert.glsl`` extrudes where the edge is a silhouette edge
+  for the frame's light, and its faces, which ``sv_cap.vert.glsl`` makes the caps;
+- any other part: its triangles, each made one volume by ``sv_polygon.geom.glsl``.
+Stored per edge: two triangles (first the quad's half that is the whole side for a
+directional light, whose far corners coincide, then the other half), six vertices without
+an index buffer, so the vertex shader runs a known number of times: 3 per edge for a
+directional light, 6 for a spot light; 3 per face for the caps and the per-triangle volumes.
+
+The frame's light reaches the shaders as a uniform, so everything that depends on it runs on
+the GPU inside the volume pass. :meth:`GpuVolumes.diagnostics` recounts in NumPy what that pass built, for
+the results' columns (silhouette edges, volumes, triangles); it is untimed, as a renderer
+would not compute it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from OpenGL import GL
+
+from harness.gl.geometry import VertexArray
+from harness.gl.shaders import Program
+from harness.scene import Light
+
+from . import sv_volumes
+from .sv_volumes import CleanMesh
+
+# position, other end, plane of the face holding position -> other end, of its twin, far corner
+EDGE_LAYOUT = (3, 3, 4, 4, 1)
+# position, plane of its face
+FACE_LAYOUT = (3, 4)
+HERE = Path(__file__).parent
+IDENTITY = np.eye(4)
+
+
+def face_planes(mesh: CleanMesh) -> np.ndarray:
+    """(F, 4): each face's unit normal n and d = -n . corner, so n . x + d = 0 on it."""
+    tri = mesh.vertices[mesh.faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.concatenate([normal, -np.einsum("ij,ij->i", normal, tri[:, 0])[:, None]], axis=1)
+
+
+def edge_faces(mesh: CleanMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each undirected edge of a closed mesh once: its ends a, b, the face that holds a -> b
+    and the face that holds b -> a."""
+    a, b, twin = sv_volumes.directed_edges(mesh)
+    once = a < b
+    face = np.repeat(np.arange(len(mesh.faces)), 3)
+    return a[once], b[once], face[once], face[twin[once]]
+
+
+def edge_quads(mesh: CleanMesh) -> np.ndarray:
+    """The edge mesh's vertices (6 E, 15): first every edge's triangle (b, a, a at infinity),
+    then every edge's (b, a at infinity, b at infinity), with ends swapped in the shader where
+    the twin face is the lit one (the order of ``sv_volumes._sides``)."""
+    a, b, face, twin_face = edge_faces(mesh)
+    planes = face_planes(mesh)
+    v = mesh.vertices
+
+    def corner(end, other, far):
+        return np.concatenate([v[end], v[other], planes[face], planes[twin_face],
+                               np.full((len(end), 1), float(far))], axis=1)
+
+    near_a, near_b, far_a, far_b = corner(a, b, 0), corner(b, a, 0), corner(a, b, 1), corner(b, a, 1)
+    return np.concatenate([np.stack([near_b, near_a, far_a], axis=1),
+                           np.stack([near_b, far_a, far_b], axis=1)]).reshape(-1, 15)
+
+
+def face_corners(mesh: CleanMesh) -> np.ndarray:
+    """The faces' corners with their face's plane (3 F, 7)."""
+    planes = np.repeat(face_planes(mesh)[:, None], 3, axis=1)
+    return np.concatenate([mesh.vertices[mesh.faces], planes], axis=2).reshape(-1, 7)
+
+
+def light_vector(light: Light) -> np.ndarray:
+    """The light as the homogeneous point sv_extrude.glsl expects (world space; a part with a
+    model transform M would get inverse(M) times it, with ``model`` = M)."""
+    return (np.append(-light.direction, 0.0) if light.type == "directional"
+            else np.append(light.position, 1.0))
+
+
+@dataclass(frozen=True)
+class PartRange:
+    """Where a part's vertices lie in a buffer: first vertex and count."""
+
+    first: int
+    count: int
+
+
+def _ranges(counts: list[int]) -> list[PartRange]:
+    starts = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)])
+    return [PartRange(int(s), int(c)) for s, c in zip(starts, counts)]
+
+
+def _program(vertex: str, geometry: str | None = None, **defines) -> Program:
+    return Program(HERE / vertex, HERE / "sv_volume.frag.glsl", defines or None,
+                   geometry=HERE / geometry if geometry else None)
+
+
+class GpuVolumes:
+    """The volumes of every part, drawn in the volume pass (the caller sets depth, stencil and
+    blend state). ``single[i]``: part i is one silhouette volume; ``caps``: z-fail's caps;
+    ``increments_first``: the state machine's order, volume by volume, the faces that
+    increment the count first (per-triangle volumes: by the geometry shader; a silhouette
+    volume, convex wherever that order matters: drawn twice, culled one way then the other)."""
+
+    def __init__(self, names: list[str], meshes: list[CleanMesh], single: list[bool], *,
+                 caps: bool, increments_first: bool, nested_counts: bool):
+        self.caps, self.increments_first = caps, increments_first
+        self.names, self.meshes, self.single = names, meshes, single
+        self.nested_counts = nested_counts
+        closed = [m for m, s in zip(meshes, single) if s and len(m.faces)]
+        open_ = [m for m, s in zip(meshes, single) if not s and len(m.faces)]
+        self.edge_meshes = [edge_faces(m) for m in closed]
+        self.edges = VertexArray(_stack([edge_quads(m) for m in closed], 15), EDGE_LAYOUT)
+        self.faces = VertexArray(_stack([face_corners(m) for m in closed], 7), FACE_LAYOUT)
+        self.polygons = VertexArray(_stack([face_corners(m) for m in open_], 7), FACE_LAYOUT)
+        self.edge_ranges = _ranges([6 * len(e[0]) for e in self.edge_meshes])
+        self.face_ranges = _ranges([3 * len(m.faces) for m in closed])
+        self.polygon_ranges = _ranges([3 * len(m.faces) for m in open_])
+        # draw order: part by part, consecutive per-triangle parts in one draw
+        self.order: list[tuple[str, int, int]] = []
+        closed_index = open_index = 0
+        for mesh, one in zip(meshes, single):
+            if not len(mesh.faces):
+                continue
+            if one:
+                self.order.append(("silhouette", closed_index, closed_index))
+                closed_index += 1
+            elif self.order and self.order[-1][0] == "polygons":
+                self.order[-1] = ("polygons", self.order[-1][1], open_index)
+                open_index += 1
+            else:
+                self.order.append(("polygons", open_index, open_index))
+                open_index += 1
+        self.edge_program = _program("sv_edge.vert.glsl")
+        self.cap_program = _program("sv_cap.vert.glsl")
+        self.polygon_program = _program("sv_polygon.vert.glsl", "sv_polygon.geom.glsl",
+                                        EDGE_ON=repr(sv_volumes.DEGENERATE))
+        self.programs = (self.edge_program, self.cap_program, self.polygon_program)
+
+    def draw(self, light: Light, view_proj: np.ndarray, **fragment_uniforms) -> None:
+        """All volumes for ``light``; ``fragment_uniforms`` go to sv_volume.frag.glsl."""
+        for program in self.programs:
+            program.use().set(light=light_vector(light), model=IDENTITY, view_proj=view_proj,
+                              caps=self.caps, increments_first=self.increments_first,
+                              **fragment_uniforms)
+        spot = light.type != "directional"
+        if not self.increments_first:
+            self._edges(range(len(self.edge_ranges)), spot)
+            self._faces(self.cap_program, self.faces, self.face_ranges, self.caps)
+            self._faces(self.polygon_program, self.polygons, self.polygon_ranges, True)
+            return
+        front_increments = fragment_uniforms["front_increments"]
+        for kind, first, last in self.order:
+            if kind == "polygons":
+                self._faces(self.polygon_program, self.polygons,
+                            self.polygon_ranges[first:last + 1], True)
+                continue
+            GL.glEnable(GL.GL_CULL_FACE)
+            for culled_front in (not front_increments, front_increments):  # increments first
+                GL.glCullFace(GL.GL_FRONT if culled_front else GL.GL_BACK)
+                self._edges([first], spot)
+                self._faces(self.cap_program, self.faces, self.face_ranges[first:first + 1],
+                            self.caps)
+            GL.glDisable(GL.GL_CULL_FACE)
+
+    def _edges(self, parts, spot: bool) -> None:
+        """Each part's edge quads: for a directional light only their first halves."""
+        ranges = [self.edge_ranges[i] for i in parts]
+        self.edge_program.use()
+        _multi_draw(self.edges, [r.first for r in ranges],
+                    [r.count if spot else r.count // 2 for r in ranges])
+
+    @staticmethod
+    def _faces(program: Program, vertices: VertexArray, ranges: list[PartRange],
+               wanted: bool) -> None:
+        if wanted:
+            program.use()
+            _multi_draw(vertices, [r.first for r in ranges], [r.count for r in ranges])
+
+    def vertex_count(self, spot: bool) -> int:
+        """Vertex shader runs of one :meth:`draw`: what the edge mesh implies."""
+        edges = sum(r.count for r in self.edge_ranges) // (1 if spot else 2)
+        caps = sum(r.count for r in self.face_ranges) if self.caps else 0
+        return (edges + caps) * (2 if self.increments_first else 1) + self.polygons.count
+
+    def diagnostics(self, light: Light) -> tuple[dict, list[str]]:
+        """What :meth:`draw` builds for ``light``, recounted in double precision (untimed):
+        silhouette edges, volumes and the triangles that are not degenerate (each side a
+        triangle for a directional light, a quad of two for a spot light); and the warnings
+        of ``sv_volumes.build``."""
+        spot = light.type != "directional"
+        sides = 2 if spot else 1
+        counts = dict.fromkeys(("silhouette_edges", "volume_count", "volume_triangles"), 0)
+        warnings = []
+        closed = iter(self.edge_meshes)
+        for name, mesh, one in zip(self.names, self.meshes, self.single):
+            if not len(mesh.faces):
+                warnings.append(f"{name}: no non-degenerate triangles; casts no shadow")
+                continue
+            if one:
+                _, _, face, twin_face = next(closed)
+                lit = sv_volumes.light_facing(mesh.vertices[mesh.faces], light) > 0
+                edges = int((lit[face] != lit[twin_face]).sum())
+                caps = int(lit.sum()) + (int((~lit).sum()) if spot else 0)
+                counts["silhouette_edges"] += edges
+                counts["volume_count"] += (volumes := 1)
+                counts["volume_triangles"] += sides * edges + (caps if self.caps else 0)
+            else:
+                volumes = len(sv_volumes.toward_light(mesh, light))
+                counts["volume_count"] += volumes
+                counts["volume_triangles"] += volumes * (3 * sides
+                                                         + ((1 + spot) if self.caps else 0))
+            notes = sv_volumes.part_notes(mesh, light, single=one,
+                                          nested_counts=self.nested_counts, volumes=volumes)
+            if notes:
+                warnings.append(f"{name}: " + "; ".join(notes))
+        return {**counts, "volume_vertices": self.vertex_count(spot)}, warnings
+
+    def release(self) -> None:
+        for resource in (self.edges, self.faces, self.polygons, *self.programs):
+            resource.release()
+
+
+def _stack(blocks: list[np.ndarray], width: int) -> np.ndarray:
+    return np.concatenate(blocks) if blocks else np.zeros((0, width), np.float32)
+
+
+def _multi_draw(vertices: VertexArray, firsts: list[int], counts: list[int]) -> None:
+    drawn = [(f, c) for f, c in zip(firsts, counts) if c]
+    if not drawn:
+        return
+    first, count = (np.array(x, np.int32) for x in zip(*drawn))
+    GL.glBindVertexArray(vertices.vao)
+    GL.glMultiDrawArrays(GL.GL_TRIANGLES, first, count, len(drawn))
+    GL.glBindVertexArray(0)
