@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import logging
 import os
 import sys
 import time
@@ -120,6 +121,10 @@ def cmd_list(args) -> int:
                   f"{'+'.join(scene.effects)}")
             if scene.description:
                 print(f"      {scene.description}")
+            for obj in scene.objects:
+                if isinstance(obj, config.MeshFile):
+                    parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
+                    print(f"      mesh {obj.path}: {parts.summary()}")
     else:
         print(f"scenes: no scene file at {path}")
     return 0
@@ -325,9 +330,11 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
             if getattr(args, "platform", None):
                 os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(record=True) as caught, _LogRecords() as logged:
                 warnings.simplefilter("default")
-                return args.func(args)
+                code = args.func(args)
+            _log_warnings(args, [_warning_line(w) for w in caught] + logged.lines)
+            return code
         except KeyboardInterrupt:
             interrupt.announce()
             if argv is None:
@@ -346,6 +353,47 @@ def main(argv: list[str] | None = None) -> int:
             code, message = known
             print(f"shadowbench: {_printable(message)}", file=sys.stderr)
             return code
+
+
+WARNINGS_LOG = "warnings.log"
+
+
+class _LogRecords(logging.Handler):
+    """Warnings that libraries log (trimesh logs rather than warns) kept as lines, in place of
+    logging's last resort, which prints them on stderr."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(f"{record.levelname} {record.name}: "
+                          f"{' '.join(record.getMessage().split())}")
+
+    def __enter__(self):
+        logging.getLogger().addHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        logging.getLogger().removeHandler(self)
+
+
+def _warning_line(w: warnings.WarningMessage) -> str:
+    return (f"{w.category.__name__} {Path(w.filename).name}:{w.lineno}: "
+            f"{' '.join(str(w.message).split())}")
+
+
+def _log_warnings(args, lines: list[str]) -> None:
+    """Libraries' warnings (trimesh, scikit-image, NumPy, Mitsuba) go to DIR/warnings.log of
+    the command's folder, never onto the terminal among the progress lines and the result; a
+    warning about one run's numbers is in that run's ``warnings`` column already. Without a
+    folder (compare, list) they are dropped; a bad input (exit 2) logs nothing."""
+    folder = getattr(args, "out", None) or getattr(args, "dir", None)
+    if not lines or folder is None or not Path(folder).is_dir():
+        return
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%S")
+    with open(Path(folder) / WARNINGS_LOG, "a", encoding="utf-8") as log:
+        log.writelines(f"{stamp} {line}\n" for line in lines)
 
 
 def _known_failure(e: Exception) -> tuple[int, str] | None:

@@ -246,6 +246,11 @@ def _loadtxt_problem(message: str, lines: np.ndarray, what: str) -> str:
 
 def _read_obj(data: bytes) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """An OBJ file's parts: each ``o`` or ``g`` line starts one (faces above any: the first)."""
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"not a mesh file: an OBJ is text, and byte {data[e.start]:#04x} at "
+                         f"offset {e.start} is not UTF-8") from None
     lines = _ObjLines(data)
     for keyword, what in ((b"vn", "normal"), (b"v", "vertex")):
         numbers, vertices = lines.vectors(keyword, what)

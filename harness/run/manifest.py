@@ -77,6 +77,19 @@ def _git_dirty() -> bool | None:
         return None
 
 
+def _meshes(scene) -> list[dict]:
+    """Each mesh file of the scene as built: its triangles, parts (open ones: not closed),
+    and the zero-area triangles dropped from it."""
+    out = []
+    for obj in scene.config.objects:
+        if isinstance(obj, cfg.MeshFile):
+            parts = cfg.mesh_parts(cfg.resolve_mesh_path(scene.source or Path("."), obj), obj.up)
+            out.append({"path": obj.path, "triangles": parts.triangles, "parts": len(parts.names),
+                        "open_parts": parts.closed.count(False),
+                        "degenerate_dropped": parts.dropped})
+    return out
+
+
 MANIFEST_FILE = "manifest.json"
 
 
@@ -149,7 +162,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
         "scenes": {name: {"description": scene.config.description,
-                          "effects": list(scene.config.effects)}
+                          "effects": list(scene.config.effects), "meshes": _meshes(scene)}
                    for name, scene in plan.scenes.items()},
         "started": invocations[0]["started"],
         "finished": (previous.get("finished") if same and previous.get("finished")
