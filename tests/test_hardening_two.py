@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 from unittest import mock
 
+import numpy as np
 import pytest
 import yaml
 
@@ -170,3 +171,118 @@ def test_git_status_as_the_manifest_runs_it_leaves_a_held_index_lock_alone(tmp_p
                          capture_output=True, text=True, timeout=30)
     assert out.returncode == 0 and "a" in out.stdout
     assert lock.exists() and lock.read_text() == ""
+
+
+# --- estimates for long runs -------------------------------------------------------------------
+
+class _FakeBar:
+    def __init__(self, total: int):
+        self.total, self.n, self.postfix, self.refreshed = total, 0, "", 0
+
+    def set_postfix_str(self, text, refresh=True):
+        self.postfix = text
+
+    def refresh(self):
+        self.refreshed += 1
+
+    def update(self, n):
+        self.n += n
+
+    def set_description_str(self, text):
+        pass
+
+
+def test_a_moving_runs_estimate_comes_with_its_first_frame_and_follows_its_frames(monkeypatch):
+    """Before: a 1000-frame run had no estimate until it ended (the ETA counted runs, and
+    'about 0:10 left' stayed for 47 s)."""
+    from harness.run import sweep
+    from harness.run.plan import RunSpec
+
+    now = [100.0]
+    monkeypatch.setattr(sweep.time, "monotonic", lambda: now[0])
+    moving = RunSpec("s", "sm", {}, 64, 64, frames=1000, warmup=0, samples=1)
+    still = RunSpec("t", "sm", {}, 64, 64, frames=15, warmup=2, samples=1)
+    bar = _FakeBar(total=2)
+    progress = sweep._Progress(bar, [moving, still])
+    now[0] += 2.0
+    progress.frame_done([moving])  # 1 of 1017 frames in 2 s: 2032 s left
+    assert bar.postfix == "2 to go, about 0:33:52 left"
+    assert bar.refreshed == 1
+    now[0] += 2.0
+    progress.frame_done([moving])
+    assert bar.postfix == "2 to go, about 0:33:50 left"
+    progress.run_done(moving, {"status": "ok"})
+    assert (bar.n, progress.left) == (1, sweep._cost(still))
+
+
+def test_a_moving_scene_reports_each_frame_to_the_progress(tmp_path, gl_context, monkeypatch,
+                                                          capsys):
+    """The serial renderer calls the progress once per frame of a moving scene's sequence."""
+    from harness.run import sweep
+
+    frames = []
+    monkeypatch.setattr(sweep._Progress, "frame_done",
+                        lambda self, specs: frames.append([s.technique for s in specs]))
+    scene_file = write_scenes(tmp_path, {"s": {**GOOD, "motion": {"frames": 4,
+                                                                  "camera_orbit": 20}}})
+    experiment = tmp_path / "e.yaml"
+    experiment.write_text(yaml.safe_dump({"techniques": {"sm": None, "pcf": None},
+                                          "reference": {"samples": 1}}))
+    code, err = run_cli(["run", experiment, "--scene-file", scene_file, "--out",
+                         tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    assert [sorted(f) for f in frames] == [["pcf", "sm"]] * 4
+
+
+# --- no stray output ---------------------------------------------------------------------------
+
+def test_library_warnings_go_to_the_log_and_a_runs_own_into_its_row(tmp_path, gl_context,
+                                                                   monkeypatch, capsys):
+    """Before: any library warning (trimesh's, scikit-image's psnr) was printed among the
+    progress lines."""
+    import logging
+    import warnings
+
+    from harness import metrics
+    from harness.run import plan as planning
+    from test_hardening import _rows, _small_run
+
+    build = planning.build_scene
+
+    def noisy_build(*args, **kwargs):
+        warnings.warn("a library's planning warning", RuntimeWarning)
+        logging.getLogger("trimesh").warning("a library's log record")
+        return build(*args, **kwargs)
+
+    psnr = metrics.psnr
+
+    def noisy_psnr(*args, **kwargs):
+        warnings.warn("psnr divide by zero", RuntimeWarning)
+        return psnr(*args, **kwargs)
+
+    monkeypatch.setattr(planning, "build_scene", noisy_build)
+    monkeypatch.setattr(metrics, "psnr", noisy_psnr)
+    code, err = run_cli(_small_run(tmp_path), capsys)
+    assert code == 0, err
+    assert not any(text in line for line in err for text in ("planning warning", "log record",
+                                                               "divide")), err
+    log = (tmp_path / "out" / "warnings.log").read_text()
+    assert "RuntimeWarning test_hardening_two.py" in log
+    assert "a library's planning warning" in log
+    assert "WARNING trimesh: a library's log record" in log
+    (row,) = _rows(tmp_path / "out")
+    assert row["warnings"] == "RuntimeWarning: psnr divide by zero"
+
+
+def test_psnr_of_identical_images_is_inf_without_a_warning():
+    """Before: scikit-image's 'divide by zero encountered' RuntimeWarning."""
+    import warnings
+
+    from harness import metrics
+
+    v = np.linspace(0, 1, 64, dtype=np.float32).reshape(8, 8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert metrics.psnr(v, v) == float("inf")
+    assert metrics.psnr(v, np.clip(v + 0.1, 0, 1)) == pytest.approx(
+        10 * np.log10(1 / np.mean((np.clip(v + 0.1, 0, 1) - v) ** 2)))

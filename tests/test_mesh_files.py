@@ -68,6 +68,7 @@ def test_a_nan_vertex_in_an_obj_names_its_line(tmp_path, capsys):
              "f 1 2 3\nf 1 2 4\n", "line 5: vertex is nan")
 
 
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # trimesh writing the file
 @pytest.mark.parametrize("fmt", ["ply", "glb", "stl"])
 @pytest.mark.parametrize("value, word", [(np.nan, "nan"), (np.inf, "inf")])
 def test_a_nan_or_inf_vertex_names_the_vertex(fmt, value, word, tmp_path, capsys):
