@@ -158,21 +158,6 @@ def test_the_manifest_runs_git_without_optional_locks(monkeypatch):
     assert all(argv[1] == "--no-optional-locks" for argv in git), git
 
 
-def test_git_status_as_the_manifest_runs_it_leaves_a_held_index_lock_alone(tmp_path):
-    """The manifest's git status in a repository whose index lock someone holds: it answers
-    and neither waits for the lock nor removes it."""
-    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
-    (tmp_path / "a").write_text("x")
-    subprocess.run(["git", "-C", str(tmp_path), "add", "a"], check=True)
-    lock = tmp_path / ".git" / "index.lock"
-    lock.write_text("")
-    (tmp_path / "a").write_text("changed")  # a stale index: plain `git status` refreshes it
-    out = subprocess.run([*manifest.GIT, "-C", str(tmp_path), "status", "--porcelain"],
-                         capture_output=True, text=True, timeout=30)
-    assert out.returncode == 0 and "a" in out.stdout
-    assert lock.exists() and lock.read_text() == ""
-
-
 # --- estimates for long runs -------------------------------------------------------------------
 
 class _FakeBar:

@@ -24,11 +24,9 @@ STL_RECORD = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attribute",
 
 @pytest.fixture(autouse=True)
 def fresh_mesh_cache(tmp_path, monkeypatch):
-    """Each test's own mesh cache and an empty in-process memo: cold means cold."""
+    """Each test's own mesh cache and in-process memo: cold means cold."""
     monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path / "cache"))
-    mesh_files._loaded.clear()
-    yield
-    mesh_files._loaded.clear()
+    monkeypatch.setattr(mesh_files, "_loaded", {}, raising=False)
 
 
 def with_mesh(tmp_path, name: str, **options):
@@ -97,17 +95,19 @@ def test_coordinates_of_1e30_are_one_line_with_no_library_warning(tmp_path, caps
              "line 2: vertex has coordinate 1e+30")
 
 
-def test_an_stl_over_the_budget_is_refused_from_its_header_at_once(tmp_path, capsys,
-                                                                   monkeypatch):
+@pytest.mark.parametrize("fmt", ["stl", "ply", "glb", "obj"])
+def test_a_mesh_over_the_budget_is_refused_from_its_header_at_once(fmt, tmp_path, monkeypatch):
     """Before: a 5.2 M-triangle STL was loaded whole (48 s, 3.6 GB) before it was counted.
-    Here the budget is 1,000 and the file 20,000 triangles; the load is never reached."""
-    mesh = trimesh.creation.icosphere(subdivisions=5)  # 20,480 triangles
-    (tmp_path / "m.stl").write_bytes(binary(mesh, "stl"))
+    Here the budget is 1,000 and the file 20,480 triangles; the load is never reached."""
+    mesh = trimesh.creation.icosphere(subdivisions=5)
+    (tmp_path / f"m.{fmt}").write_bytes(binary(mesh, fmt) if fmt != "obj"
+                                        else mesh.export(file_type="obj").encode())
     monkeypatch.setattr(trimesh, "load", lambda *a, **k: pytest.fail("the file was loaded"))
+    monkeypatch.setattr(mesh_files, "_build", lambda *a: pytest.fail("the file was loaded"))
     started = time.monotonic()
     with pytest.raises(config.ConfigError, match=r"declares 20,480 triangles, more than the "
                                                  r"budget of 1,000"):
-        config.load_scenes(with_mesh(tmp_path, "m.stl"), triangle_budget=1000)
+        config.load_scenes(with_mesh(tmp_path, f"m.{fmt}"), triangle_budget=1000)
     assert time.monotonic() - started < 1
 
 
