@@ -217,7 +217,8 @@ def nonfinite(*arrays) -> int:
 
 def receives_light(normal, position, light, camera_position) -> np.ndarray:
     """Pixels the light can reach: the visible side faces the light (n . l > 0, with n turned
-    toward the camera) and, for a spot light, the point lies inside its cone.
+    toward the camera) and, for a spot light, the point lies inside its cone (a point light
+    has none: it reaches every surface facing it).
 
     Elsewhere a surface receives no direct light whatever V says, and techniques
     legitimately differ there (shadow volumes shadow a back face, a biased map may call it
@@ -240,13 +241,15 @@ def shade(visibility, normal, position, albedo, light, *, ambient: float) -> np.
     """GL-side shaded image: albedo * (ambient + V * direct Lambert), as RGB (H, W, 3).
 
     The direct term matches the reference's light power: cos for a directional light,
-    cos * power_scale / r^2 inside the cone for a spot light (``light`` is a :class:`harness.scene.Light`).
+    cos * power_scale / r^2 for a point light and inside the cone for a spot light (``light``
+    is a :class:`harness.scene.Light`).
     """
     to_light = light.to_light(position)
     cos = np.clip((normal * to_light).sum(-1), 0, None)
-    if light.type == "spot":
+    if light.positional:
         d = position - light.position
-        r2 = np.maximum((d * d).sum(-1), 1e-12)
-        cos = np.where(light.inside_cone(position), cos * light.power_scale / r2, 0.0)
+        cos = cos * light.power_scale / np.maximum((d * d).sum(-1), 1e-12)
+    if light.type == "spot":
+        cos = np.where(light.inside_cone(position), cos, 0.0)
     value = albedo * (ambient + np.asarray(visibility) * cos)
     return np.repeat(value[..., None], 3, axis=2).astype(np.float32)

@@ -1,7 +1,8 @@
 """The Mitsuba reference: exact hard-shadow visibility averaged over each pixel's area.
 
 Per pixel, ``samples`` jittered stratified primary rays from the matched camera; from each hit
-one shadow ray toward the spot light's position or against the directional light's direction.
+one shadow ray toward the spot or point light's position or against the directional light's
+direction.
 V_ref is the lit fraction of the samples that hit geometry. A pixel is covered when the ray
 through its centre hits geometry, exactly the GL rasteriser's coverage rule. All of it is one
 Dr.Jit kernel over the pixels, as Mitsuba's own integrators run (``scalar_rgb``: a pixel loop).
@@ -33,8 +34,8 @@ from .scene import BuiltScene
 CACHE_VERSION = 5  # bump when the reference's definition changes
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
                "/usr/lib", "/usr/local/lib")
-# Irradiance (directional) or intensity (spot) of pi makes the diffuse radiance albedo * cos
-# (/ r^2 for the spot), the same scale the GL side shades with.
+# Irradiance (directional) or intensity (spot, point) of pi makes the diffuse radiance
+# albedo * cos (/ r^2 for a positional light), the same scale the GL side shades with.
 LIGHT_POWER = math.pi
 
 
@@ -151,14 +152,17 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
         },
     }
     light = scene.light
+    intensity = {"type": "rgb", "value": [LIGHT_POWER * light.power_scale] * 3}
     if light.type == "directional":
         d["light"] = {"type": "directional", "direction": light.direction.tolist(),
                       "irradiance": {"type": "rgb", "value": [LIGHT_POWER] * 3}}
+    elif light.type == "point":
+        d["light"] = {"type": "point", "position": (light.position - origin).tolist(),
+                      "intensity": intensity}
     else:
         half = light.fov_deg / 2
         d["light"] = {
-            "type": "spot", "cutoff_angle": half, "beam_width": half,
-            "intensity": {"type": "rgb", "value": [LIGHT_POWER * light.power_scale] * 3},
+            "type": "spot", "cutoff_angle": half, "beam_width": half, "intensity": intensity,
             "to_world": mi.ScalarTransform4f().look_at(
                 origin=(light.position - origin).tolist(),
                 target=(light.position - origin + light.direction).tolist(),
@@ -320,8 +324,8 @@ def _check_finite(scene: BuiltScene) -> None:
     cam, light = scene.config.camera, scene.light
     values = {f"vertices of {part.name}": part.vertices for part in scene.parts}
     values.update({"camera": np.r_[cam.position, cam.target, cam.up, cam.yfov, cam.near, cam.far],
-                   "light": np.r_[light.direction, light.position if light.position is not None
-                                  else ()]})
+                   "light": np.r_[() if light.direction is None else light.direction,
+                                  () if light.position is None else light.position]})
     bad = [name for name, v in values.items() if not np.isfinite(v).all()]
     if bad:
         raise UntraceableSceneError(f"scene {scene.name!r} cannot be traced: NaN or Inf in "

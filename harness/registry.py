@@ -2,7 +2,8 @@
 
 Built-in techniques register exactly as a third-party package would: an entry point
 ``name = "package.module:Class"`` in that group. Two entry points with one name are an error, and
-so is a bad quality-knob declaration: each is bad input (exit 2), naming the technique and key.
+so is a bad quality-knob or declined-light declaration: each is bad input (exit 2), naming the
+technique and key.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from functools import lru_cache
 from importlib.metadata import entry_points
 
 from .config import ConfigError
-from .technique import Technique, check_quality_knobs
+from .technique import Technique, check_declined_lights, check_quality_knobs
 
 GROUP = "shadowbench.techniques"
 
@@ -40,6 +41,11 @@ def techniques() -> dict[str, type[Technique]]:
             check_quality_knobs(cls)
         except ValueError as e:
             raise RegistryError(f"technique {ep.name!r} ({ep.value}): quality_knobs.{e}") from None
+        try:
+            check_declined_lights(cls)
+        except ValueError as e:
+            raise RegistryError(f"technique {ep.name!r} ({ep.value}): declines_lights.{e}") \
+                from None
         found[ep.name], origin[ep.name] = cls, ep.value
     return dict(sorted(found.items()))
 

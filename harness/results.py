@@ -20,6 +20,7 @@ SCHEMA_VERSION = 1
 # name -> type; these keep their names and meaning (DESIGN.md). Techniques may add columns.
 COLUMNS: dict[str, type] = {
     "run_id": str, "schema": int, "scene": str, "technique": str, "params": str,
+    "family": str, "triangles": int,
     "width": int, "height": int, "res": float,
     "time_ms": float, "time_ms_min": float, "time_ms_max": float, "frames": int,
     "time_ms_ci_low": float, "time_ms_ci_high": float, "frame_ms": str,

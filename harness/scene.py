@@ -22,29 +22,39 @@ from .interrupt import raise_if_interrupted
 
 @dataclass(frozen=True)
 class MeshPart:
-    """One object copy: merged vertices and faces (for adjacency), and its albedo."""
+    """One object copy: merged vertices and faces (for adjacency), its albedo, and the index
+    of its object in the scene's ``objects`` (what an object motion moves)."""
 
     name: str
     vertices: np.ndarray  # (V, 3) float32
     faces: np.ndarray  # (F, 3) int32
     albedo: float
+    object_index: int = 0
 
 
 @dataclass(frozen=True)
 class Light:
-    """The light in world space. ``direction`` is the way light travels (unit)."""
+    """The light in world space. ``direction`` is the way light travels (unit): a directional
+    light's, or a spot light's axis; None for a point light, which shines every way."""
 
-    type: str
-    direction: np.ndarray
-    position: np.ndarray | None = None  # spot only
+    type: str  # directional, spot or point
+    direction: np.ndarray | None
+    position: np.ndarray | None = None  # spot and point
     fov_deg: float | None = None  # spot only: full cone angle
-    aim_distance: float = 1.0  # spot only: |target - position|
+    aim_distance: float = 1.0  # spot: |target - position|; point: to the camera's target
+
+    @property
+    def positional(self) -> bool:
+        """Whether light leaves one point (spot and point): rays, volumes and maps start
+        there, and irradiance falls off with the squared distance."""
+        return self.type != "directional"
 
     @property
     def power_scale(self) -> float:
-        """Spot intensity is scaled by the aim distance squared, so the surface it aims at
-        receives about the irradiance a directional light of the same power gives."""
-        return self.aim_distance ** 2 if self.type == "spot" else 1.0
+        """A positional light's intensity is scaled by its aim distance squared, so the surface
+        it aims at (a spot's target; what the camera looks at, for a point light) receives
+        about the irradiance a directional light of the same power gives."""
+        return self.aim_distance ** 2 if self.positional else 1.0
 
     def inside_cone(self, points: np.ndarray) -> np.ndarray:
         """Spot light: whether each point lies inside the cone (its full angle ``fov_deg``)."""
@@ -68,6 +78,9 @@ class BuiltScene:
     light: Light
     key: str  # content hash of the scene description (mesh file contents included)
     source: Path | None = field(default=None, compare=False)
+    # a frame of a moving scene whose objects moved: each part's rigid transform (P, 4, 4) from
+    # the moving scene's parts as written (None: none moved)
+    poses: np.ndarray | None = field(default=None, compare=False)
 
     @property
     def width(self) -> int:
@@ -104,8 +117,8 @@ class BuiltScene:
     def with_resolution(self, width: int, height: int) -> "BuiltScene":
         new_config = self.config.model_copy(update={"resolution": (width, height)})
         return BuiltScene(
-            self.name, new_config, self.parts, self.light, scene_key(new_config, self.source),
-            self.source,
+            self.name, new_config, self.parts, self.light,
+            scene_key(new_config, self.source, self.poses), self.source, self.poses,
         )
 
     @property
@@ -114,18 +127,22 @@ class BuiltScene:
         return self.config.motion.frames if self.config.motion else 1
 
     def at_frame(self, t: int) -> "BuiltScene":
-        """Frame ``t`` of a moving scene: a still scene with that frame's camera and light
-        (harness/motion.py) and the same geometry. Its key is that still scene's, so each
-        frame has its own reference cache entry and frame 0 shares the scene's without
-        motion. A still scene's only frame is itself."""
+        """Frame ``t`` of a moving scene: a still scene with that frame's camera and light and
+        its objects where their paths put them (harness/motion.py). Its key is that still
+        scene's (with the parts' poses where objects moved), so each frame has its own
+        reference cache entry and frame 0 shares the scene's without motion. A still scene's
+        only frame is itself."""
         if self.config.motion is None:
             if t != 0:
                 raise IndexError(f"frame {t} of the still scene {self.name!r}")
             return self
-        config = motion_paths.scene_at(self.config, self.bounds.mean(axis=0), t)
-        frame = BuiltScene(self.name, config, self.parts, _light(config.light),
-                           scene_key(config, self.source), self.source)
-        for name in _GEOMETRY:  # the same triangles: computed once per sequence
+        centre = self.bounds.mean(axis=0)
+        config = motion_paths.scene_at(self.config, centre, t)
+        poses = motion_paths.object_poses(self.config, self.parts, centre, t)
+        parts = self.parts if poses is None else motion_paths.posed(self.parts, poses)
+        frame = BuiltScene(self.name, config, parts, _light(config),
+                           scene_key(config, self.source, poses), self.source, poses)
+        for name in _GEOMETRY if poses is None else ():  # the same triangles: computed once
             if name in self.__dict__:
                 frame.__dict__[name] = self.__dict__[name]
         return frame
@@ -201,35 +218,51 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
                     vertices=(vertices + offset).astype(np.float32),
                     faces=faces,
                     albedo=obj.albedo,
+                    object_index=index,
                 ))
     return parts
 
 
-def _light(light) -> Light:
+def _light(scene: cfg.Scene) -> Light:
+    light = scene.light
     if isinstance(light, cfg.DirectionalLight):
         d = np.asarray(light.direction, dtype=np.float64)
         return Light("directional", d / np.linalg.norm(d))
     pos = np.asarray(light.position, dtype=np.float64)
+    if isinstance(light, cfg.PointLight):
+        # a point light inside what the camera looks at keeps its intensity as written
+        aim = float(np.linalg.norm(np.asarray(scene.camera.target, dtype=np.float64) - pos))
+        return Light("point", None, pos, aim_distance=aim or 1.0)
     d = np.asarray(light.target, dtype=np.float64) - pos
     distance = float(np.linalg.norm(d))
     return Light("spot", d / distance, pos, light.fov, distance)
 
 
-def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
+def scene_key(scene: cfg.Scene, source: Path | None = None,
+              poses: np.ndarray | None = None) -> str:
     """Hash of the scene's geometry, light, camera and motion, including the bytes of any mesh
-    files it loads; its ``description`` is prose and stays out, so rewording it keeps references
-    and run ids. A still scene hashes as it did before scenes could move (no ``motion`` key)."""
-    geometry = scene.model_dump(mode="json", exclude={"description"} | (
-        {"motion"} if scene.motion is None else set()))
+    files it loads, and of ``poses`` (a frame whose objects moved: BuiltScene.poses); its
+    ``description`` and the objects' names are labels and stay out, so rewording them keeps
+    references and run ids. A still scene hashes as it did before scenes could move (no
+    ``motion`` key), a moving one as before objects could (no ``motion.objects`` when none
+    move)."""
+    labels = {"description": True, "objects": {"__all__": {"name"}}}
+    if scene.motion is None:
+        labels["motion"] = True
+    elif not scene.motion.objects:
+        labels["motion"] = {"objects"}
+    geometry = scene.model_dump(mode="json", exclude=labels)
     h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):
             h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())
+    if poses is not None:
+        h.update(np.ascontiguousarray(poses, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]
 
 
 def build_scene(name: str, scene: cfg.Scene, source: Path | None = None) -> BuiltScene:
-    return BuiltScene(name, scene, build_parts(scene, source), _light(scene.light),
+    return BuiltScene(name, scene, build_parts(scene, source), _light(scene),
                       scene_key(scene, source), source)
 
 

@@ -8,9 +8,12 @@ G-buffer pixels: its last pass draws V into the frame's visibility target
 
 The harness calls ``prepare(frame)`` once per run, then ``update(frame)``, then ``render(frame)``
 for each frame. On a moving scene (``motion`` in the scene file) the frame moves to each
-sequence frame's camera and light (:meth:`Frame.move_to`: same geometry, new G-buffer) and the
-harness calls ``update(frame)`` before every measured ``render``, so the technique keeps its GL
-resources across the sequence and recomputes only what depends on the view or the light.
+sequence frame's camera, light and objects (:meth:`Frame.move_to`: the scene's vertex buffer
+holds the moved triangles, the G-buffer is rendered again) and the harness calls
+``update(frame)`` before every measured ``render``, so the technique keeps its GL resources
+across the sequence and recomputes only what depends on the view, the light or the geometry.
+Geometry a technique builds once in ``prepare`` from ``frame.scene.parts`` follows moving
+objects through :attr:`Frame.part_poses` (each part's rigid transform from those parts).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from OpenGL import GL
 from pydantic import BaseModel, ConfigDict
 
 from . import metrics
+from .config import LIGHT_TYPES
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, scene_vertex_array
@@ -76,18 +80,34 @@ class Technique:
     # The technique whose cost the others' is divided by at equal error (analysis.summary, the
     # dashboard's overview): one registered technique says so, the harness names none.
     baseline: ClassVar[bool] = False
+    # Light types (harness.scene.Light.type) the technique does not render, each with the
+    # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
+    # ``prepare``). A point light shines every way, so a technique built on one light frustum
+    # declines it unless it says otherwise (``declines_lights = {}``).
+    declines_lights: ClassVar[dict[str, str]] = {
+        "point": "it declares no point-light path (a point light shines every way, past any "
+                 "one light frustum)"}
 
     def __init__(self, params: TechniqueParams):
         self.params = params
 
+    @classmethod
+    def check_light(cls, light) -> None:
+        """Raise :class:`NotApplicable` naming the reason when the technique declines the
+        type of ``light`` (a :class:`harness.scene.Light`)."""
+        reason = cls.declines_lights.get(light.type)
+        if reason:
+            raise NotApplicable(f"{cls.name} does not treat a {light.type} light: {reason}")
+
     def prepare(self, frame: "Frame") -> None:
-        """Allocate GL resources and upload what depends on geometry."""
+        """Allocate GL resources and upload what depends on geometry (where objects move,
+        as at frame 0, then moved by :attr:`Frame.part_poses`)."""
 
     def update(self, frame: "Frame") -> None:
-        """Recompute what depends on the frame's camera or light (a light frustum's fit, a
-        warp, silhouette edges, shadow volumes): called after ``prepare`` and, on a moving
-        scene, before every measured ``render``; it must give the same state when called again
-        with nothing moved.
+        """Recompute what depends on the frame's camera, light or moving objects (a light
+        frustum's fit, a warp, silhouette edges, shadow volumes): called after ``prepare`` and,
+        on a moving scene, before every measured ``render``; it must give the same state when
+        called again with nothing moved.
 
         Timing: on a moving scene the work an engine pays every frame goes inside
         ``frame.measure(name)`` here, and counts in the frame's time as a pass of its own;
@@ -147,6 +167,19 @@ def check_quality_knobs(cls: type[Technique]) -> None:
             raise ValueError(f"{knob}: {', '.join(repeated)} listed more than once")
 
 
+def check_declined_lights(cls: type[Technique]) -> None:
+    """Check ``declines_lights``: light types of the scene format, each with a reason. Raises
+    ValueError ``"<type>: <what is wrong>"``."""
+    if not isinstance(cls.declines_lights, dict):
+        raise ValueError(f"must be a mapping {{light type: reason}}, got "
+                         f"{type(cls.declines_lights).__name__}")
+    for kind, reason in cls.declines_lights.items():
+        if kind not in LIGHT_TYPES:
+            raise ValueError(f"{kind}: not a light type; light types: {', '.join(LIGHT_TYPES)}")
+        if not isinstance(reason, str) or not reason.strip():
+            raise ValueError(f"{kind}: needs the reason, got {reason!r}")
+
+
 def quality_settings(knobs: dict[str, list], base: dict | None = None) -> list[tuple[str, dict]]:
     """The settings of a curve, one knob at a time: ``(knob, {**base, knob: value})`` for each
     knob and value in order. Walking one knob from a shared base (the defaults unless ``base``
@@ -160,7 +193,7 @@ class Frame:
     """Everything a technique may use for one scene at one resolution, owned by the harness.
 
     For a moving scene ``scene`` is the frame of its sequence the frame is at (a still scene:
-    that frame's camera and light), starting at frame 0; :meth:`move_to` moves it."""
+    that frame's camera, light and objects), starting at frame 0; :meth:`move_to` moves it."""
 
     def __init__(self, scene: BuiltScene):
         self.sequence = scene  # the scene as given, moving or still
@@ -168,7 +201,7 @@ class Frame:
         self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
-        self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
+        self.geometry = self._scene_vertex_array()
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
@@ -179,6 +212,10 @@ class Frame:
         self.meter = self.new_meter()
         self.arrays = self._camera_pass()
 
+    def _scene_vertex_array(self):
+        s = self.scene
+        return scene_vertex_array(s.triangles, s.face_normals, s.face_albedo)
+
     def _camera_pass(self):
         self.gbuffer.render(self.geometry, self.camera.view_proj)
         return self.gbuffer.read()
@@ -188,13 +225,26 @@ class Frame:
         """Frames of the scene's sequence (1 for a still scene)."""
         return self.sequence.frames
 
+    @property
+    def part_poses(self) -> np.ndarray:
+        """Each part's rigid transform (P, 4, 4) float64 from where it was at frame 0, the
+        geometry ``prepare`` saw: how far moving objects have gone (identities when none
+        moved, and always on a still scene, even one that is a moved frame of another)."""
+        poses = self.scene.poses if self.sequence.config.motion else None
+        return np.tile(np.eye(4), (len(self.scene.parts), 1, 1)) if poses is None else poses
+
     def move_to(self, index: int) -> None:
-        """Put the frame at frame ``index`` of its moving scene: that camera and light, the
-        G-buffer rendered and read again; the geometry, targets and timers stay."""
+        """Put the frame at frame ``index`` of its moving scene: that camera, light and
+        geometry (the scene's vertex buffer uploaded again where objects moved, as an
+        animation system does before the frame's passes), the G-buffer rendered and read
+        again; the targets and timers stay."""
         if index == self.index:
             return
-        self.scene = self.sequence.at_frame(index)
+        previous, self.scene = self.scene, self.sequence.at_frame(index)
         self.index = index
+        if self.scene.parts is not previous.parts:
+            self.geometry.release()
+            self.geometry = self._scene_vertex_array()
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
         self.arrays = self._camera_pass()
 

@@ -79,8 +79,12 @@ def _to_view(view: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum:
-    """Directional: orthographic fitted to the scene bounds. Spot: perspective over its cone."""
+    """Directional: orthographic fitted to the scene bounds. Spot: perspective over its cone.
+    A point light has no one frustum (:func:`cube_faces`)."""
     light, bounds = scene.light, scene.bounds
+    if light.type == "point":
+        raise ValueError("a point light shines every way: its map is six cube_faces, not one "
+                         "frustum")
     corners = box_corners(bounds)
     if light.type == "directional":
         center = bounds.mean(axis=0)
@@ -109,3 +113,25 @@ def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum
     proj = pyrender.PerspectiveCamera(yfov=yfov, znear=near, zfar=far,
                                       aspectRatio=1.0).get_projection_matrix(res, res)
     return LightFrustum(view, proj, False, near, far)
+
+
+# A point light's cube faces, in the order of the layer a shader picks for the direction d from
+# the light: 2 x (axis of d's largest |component|) + (1 where that component is negative).
+CUBE_AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                     dtype=np.float64)
+# near = far x this: a 24-bit depth buffer still orders what each face draws
+CUBE_NEAR_RATIO = 1e-4
+
+
+def cube_faces(scene: BuiltScene, res: int, half_tan: float = 1.0) -> list[LightFrustum]:
+    """A point light's six perspective faces along ``CUBE_AXES``. ``half_tan`` 1 gives each
+    face its 90 degrees exactly; more widens every face alike, so its map also holds a band of
+    its neighbours' directions (for samples that reach past the face's own edge)."""
+    position = scene.light.position
+    far = max(float(np.linalg.norm(box_corners(scene.bounds) - position, axis=1).max()) * 1.01,
+              1e-3)
+    near = far * CUBE_NEAR_RATIO
+    proj = pyrender.PerspectiveCamera(yfov=2 * math.atan(half_tan), znear=near, zfar=far,
+                                      aspectRatio=1.0).get_projection_matrix(res, res)
+    return [LightFrustum(look_at(position, position + axis, any_perpendicular_up(axis)), proj,
+                         False, near, far) for axis in CUBE_AXES]

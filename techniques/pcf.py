@@ -37,7 +37,10 @@ class PercentageCloserFiltering(Technique):
     (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006): samples far out in a large
     region get the bias their distance needs,
     which one constant cannot give for every region, scene size and map size (Reeves et al.
-    tune Bias per scene). Points behind the light or outside the map count as lit.
+    tune Bias per scene). Points behind the light or outside the map count as lit. A point
+    light gets sm's cube of six faces, each face's 90 degrees over ``res`` texels and 32 more
+    texels of its neighbours' directions on every side (half the largest region), so no
+    sample of a point near a face's edge falls off its face.
 
     ==============  ===============================================  =========  ===========
     Parameter       Meaning                                          Default    Range
@@ -64,6 +67,7 @@ class PercentageCloserFiltering(Technique):
     # quality knobs: the map size (factor-4 steps keep make bench within its 10 minutes), and
     # the samples
     quality_knobs = {"res": (256, 1024, 4096), "k": (1, 4, 16, 36)}
+    declines_lights = {}  # a point light gets a cube map: six faces
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

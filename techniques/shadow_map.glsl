@@ -23,7 +23,14 @@
 //
 // A shader that picks one of several maps per pixel (csm's cascades) defines MAP_PER_PIXEL
 // before the include and declares light_view, light_proj and map_res as globals it sets before
-// calling receiver(), and map_depth(cell), the depth of the chosen map.
+// calling receiver(), and map_depth(cell), the depth of the chosen map. A point light's cube
+// (CUBE_FACES: cube_faces.glsl) is such a shader's part: there receiver() picks the face.
+#ifdef CUBE_FACES
+#define MAP_PER_PIXEL 1
+#include "cube_faces.glsl"
+#else
+void choose_face(vec3 world) {}  // light_view is already the point's
+#endif
 #ifndef MAP_PER_PIXEL
 uniform sampler2D shadow_map;
 uniform mat4 light_view;
@@ -68,6 +75,7 @@ LightSample to_light(vec3 world) {
 // (orthographic, perspective, warped): depth is affine in world space, the map position
 // projective.
 Receiver receiver(vec3 world, vec3 normal) {
+    choose_face(world);  // the point's face serves every read of its receiver plane
     LightSample s = to_light(world);
     Receiver r;
     r.texel = s.texel;

@@ -9,19 +9,18 @@ from OpenGL import GL
 
 from harness.gl.framebuffer import Framebuffer, Texture
 from harness.technique import Frame, Technique
-from harness.transforms import LightFrustum, fit_light
+from harness.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_light
 
 # Clear value of the map: "no occluder in this texel", so every receiver there is lit.
 EMPTY_DEPTH = 3.0e38
 
 
-class LightDepthMap:
-    """A res x res linear-depth map (R32F) rendered from the scene's light."""
+class _DepthMapResources:
+    """What every light depth map holds: its framebuffer, the program drawing linear depth, and
+    the light frusta it is drawn with (``frusta``)."""
 
-    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
-        self.res = res
-        self.frustum = frustum or fit_light(frame.scene, res)
-        self.fbo = Framebuffer(res, res, (GL.GL_R32F,), depth=True)
+    def __init__(self, fbo: Framebuffer):
+        self.fbo = fbo
         self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
 
     @property
@@ -30,8 +29,28 @@ class LightDepthMap:
 
     @property
     def nonfinite(self) -> int:
-        f = self.frustum
-        return int(sum(np.count_nonzero(~np.isfinite(m)) for m in (f.view, f.proj)))
+        return int(sum(np.count_nonzero(~np.isfinite(m)) for f in self.frusta
+                       for m in (f.view, f.proj)))
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.program.release()
+
+
+class LightDepthMap(_DepthMapResources):
+    """A res x res linear-depth map (R32F) rendered from the scene's light."""
+
+    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
+        self.res = res
+        self.frustum = frustum or fit_light(frame.scene, res)
+        super().__init__(Framebuffer(res, res, (GL.GL_R32F,), depth=True))
+
+    @property
+    def frusta(self) -> list[LightFrustum]:
+        return [self.frustum]
+
+    def fit(self, frame: Frame) -> None:
+        self.frustum = fit_light(frame.scene, self.res)
 
     def render(self, frame: Frame) -> None:
         self.fbo.clear((EMPTY_DEPTH,) * 4)
@@ -53,9 +72,56 @@ class LightDepthMap:
                     map_res=float(self.res), light_is_ortho=f.is_ortho, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, f.view))
 
-    def release(self) -> None:
-        self.fbo.release()
-        self.program.release()
+
+# The guard band of a point light's faces, in texels per side: half the largest
+# percentage-closer region (MAX_FOOTPRINT in pcf_samples.glsl), so a region centred on a point
+# at its face's edge still reads that face's depths, never past its edge (which would count
+# as lit: with 16 texels pcf still leaked on hard_point_ring's diagonal seams at map 1024).
+CUBE_GUARD_TEXELS = 32
+# pass names: shadow_map_px for the face along +x, ...
+_FACE_NAMES = tuple(("p" if axis.sum() > 0 else "n") + "xyz"[int(np.abs(axis).argmax())]
+                    for axis in CUBE_AXES)
+
+
+class CubeDepthMap(_DepthMapResources):
+    """A point light's depth map: six linear-depth faces (the layers of an R32F array, over one
+    depth buffer), each rendered in a timed pass of its own. Each face's own 90 degrees span
+    ``res`` texels; ``guard`` more texels on every side hold its neighbours' nearest
+    directions, so a face is res + 2 guard texels wide."""
+
+    def __init__(self, frame: Frame, res: int, guard: int = 0):
+        self.res, self.size = res, res + 2 * guard
+        self.half_tan = self.size / res
+        self.fit(frame)
+        super().__init__(Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
+                                     layers=len(CUBE_AXES)))
+
+    @property
+    def frusta(self) -> list[LightFrustum]:
+        return self.faces
+
+    def fit(self, frame: Frame) -> None:
+        self.faces = cube_faces(frame.scene, self.size, self.half_tan)
+
+    def render(self, frame: Frame) -> None:
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthFunc(GL.GL_LESS)
+        for layer, (face, name) in enumerate(zip(self.faces, _FACE_NAMES)):
+            with frame.measure(f"shadow_map_{name}"):
+                self.fbo.colors[0].clear(EMPTY_DEPTH, layer)
+                self.fbo.attach_layer(layer)
+                self.fbo.depth.clear_depth_stencil(0)
+                self.program.use().set(light_view=face.view, light_proj=face.proj)
+                frame.draw_scene()
+
+    def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame) -> dict:
+        """Uniforms of shadow_map.glsl built with CUBE_FACES (cube_faces.glsl)."""
+        first = self.faces[0]
+        return dict(shadow_map=self.fbo.colors[0].bind(unit),
+                    face_views=np.stack([f.view for f in self.faces]), light_proj=first.proj,
+                    light_position=frame.scene.light.position, map_res=float(self.size),
+                    light_is_ortho=False, slope_bias=slope_bias,
+                    depth_precision=depth_precision(frame.scene.bounds, first.view))
 
 
 # Depths and G-buffer positions are float32: far from the origin their rounding alone makes a
@@ -111,21 +177,32 @@ def camera_rays(frame: Frame) -> dict:
 class MapShading:
     """Two passes: the light depth map, then one full-screen pass writing V from it with
     ``fragment``, a shader beside this module built on ``shadow_map.glsl`` (``defines`` go to
-    it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded)."""
+    it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded).
+    A point light's map is a :class:`CubeDepthMap` (its faces widened by ``cube_guard``
+    texels)."""
 
-    def __init__(self, frame: Frame, res: int, fragment: str, **defines):
-        self.map = LightDepthMap(frame, res)
+    def __init__(self, frame: Frame, res: int, fragment: str, cube_guard: int = 0,
+                 **defines):
+        self.cube = frame.scene.light.type == "point"
+        if self.cube:
+            self.map = CubeDepthMap(frame, res, cube_guard)
+            defines["CUBE_FACES"] = 1
+        else:
+            self.map = LightDepthMap(frame, res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
     def update(self, frame: Frame) -> None:
         """Fit the map to the frame's light: an engine refits it every frame (timed)."""
         with frame.measure("light_fit"):
-            self.map.frustum = fit_light(frame.scene, self.map.res)
+            self.map.fit(frame)
 
     def render(self, frame: Frame, slope_bias: float, **uniforms) -> None:
         """Both passes; ``uniforms`` go to the shading shader."""
-        with frame.measure("shadow_map"):
-            self.map.render(frame)
+        if self.cube:
+            self.map.render(frame)  # a timed pass per face
+        else:
+            with frame.measure("shadow_map"):
+                self.map.render(frame)
         self.shade(frame, slope_bias, **uniforms)
 
     def shade(self, frame: Frame, slope_bias: float, texture: Texture | None = None,
@@ -135,8 +212,9 @@ class MapShading:
             frame.begin_visibility()
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
-            self.shading.set(**self.map.lookup_uniforms(unit, slope_bias, frame, texture),
-                             **uniforms)
+            lookup = (self.map.lookup_uniforms(unit, slope_bias, frame) if self.cube
+                      else self.map.lookup_uniforms(unit, slope_bias, frame, texture))
+            self.shading.set(**lookup, **uniforms)
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
 
     def release(self) -> None:
@@ -152,10 +230,10 @@ class FilteredShadowMap:
     ``pcf_samples.glsl`` (same samples, its own per-sample test; ``defines`` go to it)."""
 
     def __init__(self, frame: Frame, res: int, fragment: str = "pcf.frag.glsl", **defines):
-        self.passes = MapShading(frame, res, fragment, **defines)
+        self.passes = MapShading(frame, res, fragment, cube_guard=CUBE_GUARD_TEXELS, **defines)
 
     @property
-    def map(self) -> LightDepthMap:
+    def map(self) -> LightDepthMap | CubeDepthMap:
         return self.passes.map
 
     def update(self, frame: Frame) -> None:

@@ -16,8 +16,8 @@ from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, fit_light
 
 from .shadowmap import LightDepthMap
-from .silhouette_edges import (EDGE_FACES_BINDING, FACE_NORMALS_BINDING, QUAD_HALF_WIDTH,
-                               EdgeAdjacency, EdgeMesh)
+from .silhouette_edges import (EDGE_FACES_BINDING, FACE_NORMALS_BINDING, PART_POSES_BINDING,
+                               QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh)
 
 HERE = Path(__file__).parent
 
@@ -115,6 +115,7 @@ class SilhouetteMap(Technique):
                                    HERE / "silhouette_map.frag.glsl",
                                    {"EDGE_FACES_BINDING": EDGE_FACES_BINDING,
                                     "FACE_NORMALS_BINDING": FACE_NORMALS_BINDING,
+                                    "PART_POSES_BINDING": PART_POSES_BINDING,
                                     "QUAD_HALF_WIDTH": QUAD_HALF_WIDTH},
                                    geometry=HERE / "silhouette_edges.geom.glsl")
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl",
@@ -189,6 +190,7 @@ class SilhouetteMap(Technique):
             self.depth_map.render(frame)
         with frame.measure("silhouette_map"):
             self.silhouette_fbo.clear(EMPTY_POINT)
+            self.edge_mesh.place(frame.part_poses)  # where moving objects are now
             self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
         with frame.measure("shading"):
             self._shade(frame, self.shading)

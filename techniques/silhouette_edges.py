@@ -25,11 +25,11 @@ VERTEX_FLOATS = 8
 VERTEX_SIZES = (2, 2, 2, 2)
 
 # Floats per edge of the edge mesh: endpoints A and B (3 + 3), then where its faces' list starts
-# and how many faces it has (float attributes: exact integers below 2^24).
-EDGE_SIZES = (3, 3, 2)
+# and how many faces it has, then its part (float attributes: exact integers below 2^24).
+EDGE_SIZES = (3, 3, 2, 1)
 MAX_FACE_REFERENCES = 2 ** 24
-# Shader storage bindings of the edge mesh's face list and face normals.
-EDGE_FACES_BINDING, FACE_NORMALS_BINDING = 0, 1
+# Shader storage bindings of the edge mesh's face list, face normals and part poses.
+EDGE_FACES_BINDING, FACE_NORMALS_BINDING, PART_POSES_BINDING = 0, 1, 2
 
 
 class EdgeAdjacency:
@@ -43,6 +43,8 @@ class EdgeAdjacency:
         offsets = np.cumsum([0] + [len(p.vertices) for p in scene.parts[:-1]])
         self.vertices = np.concatenate([p.vertices for p in scene.parts]).astype(np.float64)
         faces = np.concatenate([p.faces + o for p, o in zip(scene.parts, offsets)])
+        self.part_of_vertex = np.repeat(np.arange(len(scene.parts)),
+                                        [len(p.vertices) for p in scene.parts])
         corner = self.vertices[faces]
         self.face_normals = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
         self.face_centroids = corner.mean(axis=1)
@@ -75,12 +77,13 @@ class EdgeMesh:
     each face's normal.
 
     Positions are stored relative to ``origin``, the centre of the scene's bounds, and the
-    vertex stage works in that frame: :meth:`uniforms` folds ``model`` (today the translation
-    to the origin) into the light view and brings the light into the frame, in float64. So
-    float32 never holds a coordinate as large as the scene's distance from the world origin
-    (hard_far_from_origin, 1e5 away: over half a texel of error in world coordinates). Edges
-    come part after part, so a part is a contiguous range of them: a part's rigid motion later
-    joins ``model`` for that range."""
+    vertex stage works in that frame: :meth:`uniforms` folds ``model`` (the translation to the
+    origin) into the light view and brings the light into the frame, in float64. So float32
+    never holds a coordinate as large as the scene's distance from the world origin
+    (hard_far_from_origin, 1e5 away: over half a texel of error in world coordinates). Each
+    edge carries its part, and :meth:`place` uploads each part's rigid motion (moving objects:
+    ``Frame.part_poses``) in that frame, which the vertex stage applies to the edge's
+    endpoints and to its faces' normals."""
 
     def __init__(self, adjacency: EdgeAdjacency):
         if len(adjacency.edge_of_half) >= MAX_FACE_REFERENCES:
@@ -91,16 +94,30 @@ class EdgeMesh:
         first = np.cumsum(adjacency.faces_per_edge) - adjacency.faces_per_edge
         self.origin = (adjacency.vertices.min(axis=0) + adjacency.vertices.max(axis=0)) / 2
         local = adjacency.vertices - self.origin
-        points = np.concatenate([local[adjacency.edges].reshape(-1, 6),
-                                 first[:, None], adjacency.faces_per_edge[:, None]], axis=1)
+        part = adjacency.part_of_vertex[adjacency.edges[:, 0]]
+        points = np.concatenate([local[adjacency.edges].reshape(-1, 6), first[:, None],
+                                 adjacency.faces_per_edge[:, None], part[:, None]], axis=1)
         normals = np.zeros((len(adjacency.face_normals), 4), np.float32)
         normals[:, :3] = adjacency.face_normals
         self.edges = VertexArray(points, EDGE_SIZES, mode=GL.GL_POINTS)
-        self.buffers = GL.glGenBuffers(2)
+        self.buffers = GL.glGenBuffers(3)
         for buffer, data in zip(self.buffers, (edge_faces, normals)):
             GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
             GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(data.nbytes, 4), data,
                             GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        self.place(np.tile(np.eye(4), (part.max(initial=0) + 1, 1, 1)))
+
+    def place(self, poses: np.ndarray) -> None:
+        """Upload each part's rigid transform, ``poses`` (P, 4, 4) in world space, as it acts
+        on the mesh's positions relative to ``origin`` (float64, then float32). An identity
+        stays exactly one, so a still scene's edges are the ones built."""
+        local = poses.copy()
+        local[:, :3, 3] += poses[:, :3, :3] @ self.origin - self.origin
+        # column-major, as GLSL reads a mat4 from a buffer
+        data = np.ascontiguousarray(local.transpose(0, 2, 1), dtype=np.float32)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.buffers[2])
+        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, data.nbytes, data, GL.GL_DYNAMIC_DRAW)
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
 
     def uniforms(self, light: Light, light_view: np.ndarray) -> dict:
@@ -114,13 +131,14 @@ class EdgeMesh:
                 "light_in_model": np.linalg.solve(model, light_vector)}
 
     def draw(self) -> None:
-        for binding, buffer in zip((EDGE_FACES_BINDING, FACE_NORMALS_BINDING), self.buffers):
+        for binding, buffer in zip((EDGE_FACES_BINDING, FACE_NORMALS_BINDING,
+                                    PART_POSES_BINDING), self.buffers):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
         self.edges.draw()
 
     def release(self) -> None:
         self.edges.release()
-        GL.glDeleteBuffers(2, self.buffers)
+        GL.glDeleteBuffers(3, self.buffers)
 
 
 def project_edges(endpoints: np.ndarray, frustum: LightFrustum,

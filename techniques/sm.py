@@ -13,17 +13,19 @@ class ShadowMap(Technique):
     """One depth map from the light, one depth comparison per shaded pixel.
 
     Orthographic map fitted to the scene bounds for a directional light, perspective over the
-    cone for a spot light. Map depths are linear light-space distances, so ``bias`` is in
-    scene units. The comparison reads the centre of the point's texel, up to half a texel
-    away from the point in each axis; the bias is ``bias`` plus ``slope_bias`` times the
-    receiver plane's depth slope per texel times that distance (``shadow_map.glsl``, after the
-    receiver plane of Isidoro 2006 and Schueler 2006), the rule every map technique here
-    shares.
+    cone for a spot light, and for a point light a cube: six 90-degree perspective faces of
+    ``res`` x ``res`` texels, each point tested in the face its direction falls in (one timed
+    pass per face; ``mem_bytes`` counts all six). Map depths are linear light-space distances
+    (along the face's axis, for a cube), so ``bias`` is in scene units. The comparison reads
+    the centre of the point's texel, up to half a texel away from the point in each axis; the
+    bias is ``bias`` plus ``slope_bias`` times the receiver plane's depth slope per texel
+    times that distance (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and
+    Schueler 2006), the rule every map technique here shares.
 
     ==============  ================================================  =======  ===========
     Parameter       Meaning                                           Default  Range
     ==============  ================================================  =======  ===========
-    ``res``         map width and height, texels                      1024     16 .. 8192
+    ``res``         map (a cube face's) width and height, texels      1024     16 .. 8192
     ``bias``        constant depth bias, scene units                  0.02     >= 0
     ``slope_bias``  times the receiver plane's depth slope x the      1.0      >= 0
                     distance to the texel read, texels
@@ -38,6 +40,7 @@ class ShadowMap(Technique):
     quality_knobs = {"res": (256, 1024, 4096)}
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
+    declines_lights = {}  # a point light gets a cube map: six faces
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

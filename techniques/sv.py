@@ -358,6 +358,10 @@ class ShadowVolumes(Technique):
                             warnings=self.warnings)
 
     def release(self) -> None:
+        if self.volumes:
+            # Mesa 22.3 (llvmpipe) keeps a program that draws after a geometry-shader program
+            # alive past its deletion, until a geometry-shader program is bound again
+            self.volumes.polygon_program.use()
         for resource in (self.volumes, self.near_clip, self.mask, self.scene_program,
                          self.fill_program, self.visibility_program):
             if resource:

@@ -79,6 +79,8 @@ class WarpedShadowMap(Technique):
     ``alias_max``, ``alias_near`` (see :func:`alias_statistics`), ``outside_pct``."""
 
     Params = WarpParams
+    declines_lights = {"point": "its warp reparameterises one light frustum, and a point light "
+                                "shines every way"}
 
     def warp(self, setup: ViewSetup, res: int) -> tuple[Warp | PostPerspective, dict]:
         raise NotImplementedError

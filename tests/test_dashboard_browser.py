@@ -162,3 +162,26 @@ def test_a_hostile_scene_name_runs_no_script(browser, tmp_path, make_results):
     assert browser.title == title and "PWNED" not in title
     assert browser.execute_script("return typeof alert === 'function' && !window.PWNED")
     assert not _errors(browser)
+
+
+def test_the_scale_view_draws_its_charts(browser, tmp_path, make_results):
+    """The Scale view of a hand-made family folder: the cost chart's one family panel with a
+    line per technique, the fronts' four size panels, the crossover table, a clean console.
+    Catches: a view the nav does not reach, chart specs the plotter cannot draw (a JS error,
+    no panel), the fronts not split per size."""
+    from test_report import scale_folder
+
+    index = report.build_report(scale_folder(tmp_path / "run", make_results))
+    _open(browser, index)
+    browser.find_element("css selector", "nav a[href='#scale']").click()
+    _wait_for(browser, "return document.querySelector('#scale-front-0 svg.chart')",
+              "the Scale view's charts")
+    panels = browser.execute_script(
+        "return ['scale-cost', 'scale-front-0'].map(id => "
+        "document.querySelectorAll('#' + id + ' svg.chart').length)")
+    assert panels == [1, 4]
+    lines = browser.execute_script(
+        "return document.querySelectorAll('#scale-cost svg.chart polyline.line').length")
+    assert lines == 2
+    assert "31,623 triangles" in browser.find_element("css selector", "table.crossovers").text
+    assert not _errors(browser)

@@ -97,7 +97,8 @@ shapes = st.one_of(
 lights = st.one_of(
     st.fixed_dictionaries({"type": st.just("directional"), "direction": vec3(coordinate)}),
     st.fixed_dictionaries({"type": st.just("spot"), "position": vec3(st.floats(-8, 8)),
-                           "target": vec3(coordinate), "fov": st.floats(5, 150)}))
+                           "target": vec3(coordinate), "fov": st.floats(5, 150)}),
+    st.fixed_dictionaries({"type": st.just("point"), "position": vec3(st.floats(-8, 8))}))
 scenes = st.fixed_dictionaries({
     "resolution": st.just([16, 16]),
     "camera": st.fixed_dictionaries({

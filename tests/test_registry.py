@@ -56,6 +56,23 @@ def test_one_baseline_at_most(monkeypatch):
         registry.baseline()
 
 
+@pytest.mark.parametrize("declined, message", [
+    ({"Point": "no cube map"}, "declines_lights.Point: not a light type"),
+    ({"point": ""}, "declines_lights.point: needs the reason"),
+])
+def test_declined_lights_name_light_types_with_a_reason(declined, message, monkeypatch):
+    """Catches a misspelt light type (the technique then runs on the light it meant to decline)
+    or a skip with no reason for its row."""
+    monkeypatch.setattr(registry.get("pcf"), "declines_lights", declined)
+    registry.techniques.cache_clear()
+    try:
+        with pytest.raises(registry.RegistryError, match=message):
+            registry.techniques()
+    finally:
+        monkeypatch.undo()
+        registry.techniques.cache_clear()
+
+
 TECHNIQUES = list(registry.techniques())
 TECHNIQUE_DIR = Path(techniques_package.__file__).resolve().parent
 GL_NAME_RANGE = range(1, 2001)

@@ -318,3 +318,96 @@ def test_evaluate_takes_a_scene_name_and_a_scene_file(gl_context):
     result = evaluate("box_plane", "sm", scene_file=ROOT / "scenes.yaml", resolution=(48, 32),
                       samples=4)
     assert result.row["status"] == "ok" and result.visibility.shape == (32, 48)
+
+
+# --- the Scale view and the verdict per size band ------------------------------------------------
+
+SCALE_SIZES = (1e3, 1e4, 1e5, 1e6)
+# sm and sv times at equal error per size: sv / sm = 0.25, 0.5, 2, 4 (crossing at 10^4.5)
+SCALE_TIMES = {"sm": (1, 2, 4, 8), "sv": (0.25, 1, 8, 32)}
+
+
+def scale_folder(folder: Path, make_results) -> Path:
+    """A results folder written by hand: family arch at 10^3..10^6 triangles with sm and sv at
+    SCALE_TIMES (edge_mae 0.05, edge_floor 0.04: within 1.5 x floor) and sv's volume pass
+    drawing 10 x triangles fragments; two ordinary scenes, box (2,500 triangles) and old (no
+    count, run before it was recorded)."""
+    from harness import registry
+
+    runs = []
+    for i, triangles in enumerate(SCALE_SIZES):
+        for technique, times in SCALE_TIMES.items():
+            passes = [{"name": "volumes", "ms": times[i] / 2, "fragments": 10 * triangles},
+                      {"name": "visibility", "ms": times[i] / 2, "fragments": 1000}]
+            runs.append({"scene": f"arch@{triangles:g}", "family": "arch",
+                         "triangles": int(triangles), "technique": technique,
+                         "code_version": registry.get(technique).code_version(),
+                         "time_ms": times[i], "edge_mae": 0.05, "edge_floor": 0.04,
+                         "frags_shadow": 10 * triangles + 1000, "passes": json.dumps(passes)})
+    for scene, triangles in (("box", 2500), ("old", None)):
+        runs += [{"scene": scene, "triangles": triangles, "time_ms": 1.0, "edge_mae": 0.05,
+                  "edge_floor": 0.04}]
+    make_results(folder, runs)
+    rows = results.read_rows(folder)
+    sv_defaults = json.dumps(registry.get("sv").Params().model_dump(mode="json"), sort_keys=True)
+    for row in rows:  # make_results writes sm's parameters on every row
+        if row["technique"] == "sv":
+            row["params"] = sv_defaults
+    results.write_rows(folder, rows)
+    return folder
+
+
+def test_scale_view_shows_the_exponents_and_the_crossing(tmp_path, make_results):
+    """The page of scale_folder: sm's time exponent log10(2) = 0.301 (its times double per
+    decade); sv's, by hand, the slope of log10 (0.25, 1, 8, 32) on 3..6: 3.6124 / 5 = 0.722;
+    sv's volume pass's fragments exponent 1; sv costs more than sm above 10^4.5 = 31,623
+    triangles, between 10,000 (0.5x) and 100,000 (2x); both time charts hold each technique's
+    four sizes. Catches: a view not built, the exponent of the whole frame confused with a
+    pass's, a crossing lost on the way to the page, a defaults chart that misses sv's defaults."""
+    page = build_report(scale_folder(tmp_path / "run", make_results)).read_text()
+    assert '<section class="view" id="scale">' in page and 'href="#scale"' in page
+    view = page[page.index('id="scale"'):page.index('id="scene-')]
+    exponents = view[view.index('class="exponents"'):]
+    sm_row = exponents[exponents.index("<b>sm</b>"):]
+    assert re.match(r"<b>sm</b></td><td></td>\s*<td>0\.301", sm_row)
+    sv_row = exponents[exponents.index("<b>sv</b>"):]
+    assert re.match(r"<b>sv</b></td><td></td>\s*<td>0\.722 <small>\[", sv_row)
+    assert re.search(r"<td>volumes</td><td>0\.722 <small>\[[^]]+\]</small></td>"
+                     r"<td>1 <small>\[1, 1\]</small></td><td>—</td>", sv_row)
+    crossing = re.search(r"<b>sv</b></td><td>.*?sm</td>\s*<td><b>([\d,]+) triangles</b><br>"
+                         r"<small>between ([\d,]+) \(([\d.]+)×\) and ([\d,]+) \(([\d.]+)×\)",
+                         view)
+    assert crossing.groups() == ("31,623", "10,000", "0.5", "100,000", "2")
+    assert "1,000: 0.25× · 10,000: 0.5× · 100,000: 2× · 1,000,000: 4×" in view
+    specs = dict(re.findall(r'<script type="application/json" class="chart-spec" '
+                            r'data-for="([^"]+)">(.*?)</script>', view, re.S))
+    for chart in ("scale-cost", "scale-defaults"):  # every run is both at defaults and within
+        lines = {s["name"]: [(p["x"], p["y"]) for p in s["points"]]
+                 for s in json.loads(specs[chart])["facets"][0]["series"]}
+        assert lines == {t: list(zip(SCALE_SIZES, times)) for t, times in SCALE_TIMES.items()}
+    fronts = json.loads(specs["scale-front-0"])
+    assert [f["title"] for f in fronts["facets"]] == [
+        "1,000 triangles", "10,000 triangles", "100,000 triangles", "1,000,000 triangles"]
+
+
+def test_the_overview_judges_each_size_band_apart(tmp_path, make_results):
+    """scale_folder's scenes fall in four bands: box and arch@1e3 below 10^4, arch@1e4 and
+    arch@1e5 in 10^4 to 10^5, arch@1e6 above, old (no count) in the unknown band with its
+    note. sv's median ratio to sm at equal error is 0.25 below, (0.5 + 2) / 2 = 1.25 in the
+    middle band and 4 above. Without family rows there is no Scale view. Catches: scenes pooled
+    into one verdict (1.25 in every band), a scene without a count put in the lowest band, a
+    Scale view on ordinary results."""
+    page = build_report(scale_folder(tmp_path / "run", make_results)).read_text()
+    bands = re.findall(r'<h3 class="band">(.*?) <small>\d+ scenes?: (.*?)</small></h3>', page)
+    assert bands == [("below 10⁴ triangles", "arch@1000, box"),
+                     ("10⁴ to 10⁵ triangles", "arch@10000, arch@100000"),
+                     ("above 10⁵ triangles", "arch@1e+06"), ("unknown size", "old")]
+    assert "run before it was recorded" in page
+    for band, ratio in (("below 10⁴", "0.25× <small>over 1 levels"),
+                        ("10⁴ to 10⁵", "1.25× <small>over 2 levels"),
+                        ("above 10⁵", "4× <small>over 1 levels")):
+        table = page[page.index(f'data-band="{band} triangles"'):]
+        start = table.index("<b>sv</b>")
+        assert ratio in table[start:table.index("</tr>", start)], band
+    plain = build_report(make_results(tmp_path / "plain", [{}])).read_text()
+    assert 'id="scale"' not in plain and "unknown size" in plain

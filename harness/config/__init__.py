@@ -13,11 +13,11 @@ from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, loa
                                 with_timing)
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV, NAME_PATTERN
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
-from .scene_schema import (MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule, Coordinate,
-                           Cylinder, DirectionalLight, FieldOfView, Lathe, Light, MeshFile,
-                           Motion, Placed, Plane, Scene, SceneFile, SceneObject, Size, Sphere,
-                           SpotLight, SquareInt, Strict, Vec3, check_resolution, load_scenes,
-                           square_number)
+from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule,
+                           Coordinate, Cylinder, DirectionalLight, FieldOfView, Lathe, Light,
+                           MeshFile, Motion, ObjectMotion, Placed, Plane, PointLight, Scene,
+                           SceneFile, SceneObject, Size, Sphere, SpotLight, SquareInt, Strict,
+                           Vec3, check_resolution, load_scenes, square_number)
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, format_validation_error,
                           key_error, read_yaml)
 from .yaml_source import _line_of as _line_of  # the planner names the line of a bad grid point
@@ -25,10 +25,11 @@ from .yaml_source import _line_of as _line_of  # the planner names the line of a
 __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
     "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "FieldOfView", "Grid", "Lathe",
-    "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG", "MAX_YAML_NODES", "MIN_DOLLY",
-    "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed", "Plane", "ReferenceSettings",
-    "Scalar", "Scene", "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
-    "Strict", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
-    "MeshParts", "cache_root", "load_experiment", "load_scenes", "mesh_parts", "read_yaml",
-    "resolve_mesh_path", "square_number", "with_timing",
+    "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",
+    "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "MeshParts", "Motion", "NAME_PATTERN",
+    "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
+    "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt", "Strict", "Vec3",
+    "cache_root", "check_name", "check_resolution", "format_validation_error", "key_error",
+    "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path",
+    "square_number", "with_timing",
 ]

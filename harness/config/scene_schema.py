@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, Union, get_args
 
 import numpy as np
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
@@ -99,7 +99,16 @@ class SpotLight(Strict):
         return self
 
 
-Light = Annotated[Union[DirectionalLight, SpotLight], Field(discriminator="type")]
+class PointLight(Strict):
+    """An omnidirectional light at ``position``: no direction, cone or target."""
+
+    type: Literal["point"]
+    position: Vec3
+
+
+Light = Annotated[Union[DirectionalLight, SpotLight, PointLight], Field(discriminator="type")]
+LIGHT_TYPES = tuple(get_args(kind.model_fields["type"].annotation)[0]
+                    for kind in (DirectionalLight, SpotLight, PointLight))
 
 
 class Array(Strict):
@@ -117,6 +126,7 @@ class Array(Strict):
 
 
 class Placed(Strict):
+    name: str | None = Field(None, min_length=1)  # what an object motion may call it
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
     scale: Union[Size, tuple[Size, Size, Size]] = 1.0
@@ -213,21 +223,50 @@ def check_resolution(size):
 
 MAX_ORBIT_DEG = 3600.0  # ten turns: more is a typo, not a path
 MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
+Degrees = Annotated[float, Field(ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)]
+
+
+def _axis(v):
+    if v is not None and _norm(v) == 0:
+        raise ValueError("must not be the zero vector")
+    return v
+
+
+Axis = Annotated[Vec3 | None, AfterValidator(_axis)]
+
+
+class ObjectMotion(Strict):
+    """One object's rigid path (its array copies move with it): ``object`` is its index in
+    ``objects`` or its ``name``. It spins by ``spin`` degrees about ``spin_axis`` through its
+    own centre (the centre of its bounds as written), then orbits by ``orbit`` degrees about
+    ``orbit_axis`` through ``centre`` (the centre of the scene's bounds as written unless
+    given), then moves by ``translate``; an axis not given is the camera's up. Frame t is at
+    t / (frames - 1) of each (harness/motion.py)."""
+
+    object: Union[Annotated[int, Field(ge=0)], str]
+    spin: Degrees = 0.0
+    spin_axis: Axis = None
+    orbit: Degrees = 0.0
+    orbit_axis: Axis = None
+    centre: Vec3 | None = None
+    translate: Vec3 = (0.0, 0.0, 0.0)
 
 
 class Motion(Strict):
     """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
     by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
-    light's position and target together) turns about the up axis through the centre of the
-    scene's bounds by ``light_orbit`` degrees, and the camera moves toward its target by the
-    fraction ``camera_dolly`` of its distance (negative: away). Frame t is at t / (frames - 1)
-    of each path, so the first frame is the scene as written and the last ends the paths
-    (harness/motion.py)."""
+    light's position and target together; a point light's position) turns about the up axis
+    through the centre of the scene's bounds by ``light_orbit`` degrees, and the camera moves
+    toward its target by the fraction ``camera_dolly`` of its distance (negative: away);
+    ``objects`` move along their own paths (:class:`ObjectMotion`). Frame t is at
+    t / (frames - 1) of each path, so the first frame is the scene as written and the last
+    ends the paths (harness/motion.py)."""
 
     frames: int = Field(ge=2, le=1000)
-    camera_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
-    light_orbit: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)
+    camera_orbit: Degrees = 0.0
+    light_orbit: Degrees = 0.0
     camera_dolly: float = Field(0.0, ge=MIN_DOLLY)
+    objects: list[ObjectMotion] = []
 
     @field_validator("camera_dolly")
     @classmethod
@@ -262,7 +301,41 @@ class Scene(Strict):
     def _objects(cls, v):
         if not v:
             raise ValueError("must list at least one object")
+        named = {}
+        for i, obj in enumerate(v):
+            if obj.name in named:
+                raise ValueError(f"{i}.name: {obj.name!r} names object {named[obj.name]} "
+                                 "too; names are unique within a scene")
+            if obj.name is not None:
+                named[obj.name] = i
         return v
+
+    @model_validator(mode="after")
+    def _moving_objects(self):
+        moved = set()
+        for i, path in enumerate(self.motion.objects if self.motion else ()):
+            key = f"motion.objects.{i}.object"
+            try:
+                index = self.object_index(path.object)
+            except KeyError as e:
+                raise ValueError(f"{key}: {e.args[0]}") from None
+            if index in moved:
+                raise ValueError(f"{key}: object {index} moves along another path too")
+            moved.add(index)
+        return self
+
+    def object_index(self, ref: int | str) -> int:
+        """The index in ``objects`` of ``ref``, an index or an object's name."""
+        if isinstance(ref, int):
+            if ref >= len(self.objects):
+                raise KeyError(f"no object {ref}: the scene has {len(self.objects)} "
+                               f"(0 to {len(self.objects) - 1})")
+            return ref
+        for index, obj in enumerate(self.objects):
+            if obj.name == ref:
+                return index
+        named = sorted(obj.name for obj in self.objects if obj.name is not None)
+        raise KeyError(f"no object named {ref!r}; named: {', '.join(named) or 'none'}")
 
 
 class SceneFile(Strict):

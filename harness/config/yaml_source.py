@@ -77,8 +77,10 @@ def format_validation_error(path: Path, err: ValidationError, root_node, prefix=
     elif first["type"] == "missing":
         msg = "required key is missing"
     field, sep, rest = msg.partition(": ")
-    if sep and field.isidentifier():  # a model-level check naming its field
-        loc, msg = loc + (field,), rest
+    path_in_model = field.split(".")
+    if sep and all(p.isidentifier() or p.isdigit() for p in path_in_model):  # a model-level
+        # check naming its key, or a key below it (``0.name`` of a list)
+        loc, msg = loc + tuple(int(p) if p.isdigit() else p for p in path_in_model), rest
     keypath = ".".join(str(p) for p in loc)
     line = _line_of(root_node, loc)
     where = f"{path}:{line}" if line else str(path)

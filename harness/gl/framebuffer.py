@@ -18,29 +18,42 @@ FORMATS = {
 
 
 class Texture:
-    def __init__(self, width: int, height: int, internal_format, *, linear: bool = False):
+    """A 2D texture, or with ``layers`` > 1 a 2D array texture of that many layers."""
+
+    def __init__(self, width: int, height: int, internal_format, *, linear: bool = False,
+                 layers: int = 1):
         self.width, self.height, self.internal_format = width, height, internal_format
+        self.layers = layers
         _, _, self.channels, self.texel_bytes = FORMATS[internal_format]
+        self.target = GL.GL_TEXTURE_2D_ARRAY if layers > 1 else GL.GL_TEXTURE_2D
         self.id = GL.glGenTextures(1)
-        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
-        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, internal_format, width, height)
+        GL.glBindTexture(self.target, self.id)
+        if layers > 1:
+            GL.glTexStorage3D(self.target, 1, internal_format, width, height, layers)
+        else:
+            GL.glTexStorage2D(self.target, 1, internal_format, width, height)
         filt = GL.GL_LINEAR if linear else GL.GL_NEAREST
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, filt)
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, filt)
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE)
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)
+        GL.glTexParameteri(self.target, GL.GL_TEXTURE_MIN_FILTER, filt)
+        GL.glTexParameteri(self.target, GL.GL_TEXTURE_MAG_FILTER, filt)
+        GL.glTexParameteri(self.target, GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE)
+        GL.glTexParameteri(self.target, GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)
 
     @property
     def nbytes(self) -> int:
-        return self.width * self.height * self.texel_bytes
+        return self.width * self.height * self.texel_bytes * self.layers
 
     # glClearTexImage rather than a framebuffer clear: llvmpipe clears a render target with a
     # store loop per tile (about 3 GB/s on the 2-core test machine) and a texture near memset
     # speed; a 2048^2 R32F map with its depth took 11 ms of CPU the first way, 4 ms this way.
-    def clear(self, value) -> None:
-        """Set every texel of a colour texture to ``value``, RGBA or a scalar for all four."""
+    def clear(self, value, layer: int | None = None) -> None:
+        """Set every texel of a colour texture (of one ``layer`` of an array) to ``value``,
+        RGBA or a scalar for all four."""
         rgba = np.broadcast_to(np.asarray(value, np.float32), (4,)).copy()
-        GL.glClearTexImage(self.id, 0, GL.GL_RGBA, GL.GL_FLOAT, rgba)
+        if layer is None:
+            GL.glClearTexImage(self.id, 0, GL.GL_RGBA, GL.GL_FLOAT, rgba)
+        else:
+            GL.glClearTexSubImage(self.id, 0, 0, 0, layer, self.width, self.height, 1,
+                                  GL.GL_RGBA, GL.GL_FLOAT, rgba)
 
     def clear_depth_stencil(self, stencil: int) -> None:
         """Set every texel of a depth+stencil texture to the far plane (depth 1) and
@@ -52,7 +65,7 @@ class Texture:
 
     def bind(self, unit: int) -> int:
         GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
-        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+        GL.glBindTexture(self.target, self.id)
         return unit
 
     def release(self) -> None:
@@ -60,17 +73,17 @@ class Texture:
 
 
 class Framebuffer:
-    """Colour textures (attachment order = ``colors``) and an optional depth+stencil texture."""
+    """Colour textures (attachment order = ``colors``) and an optional depth+stencil texture.
+    With ``layers`` > 1 the colour textures are arrays, drawn one layer at a time
+    (:meth:`attach_layer`) over the one depth+stencil texture."""
 
     def __init__(self, width: int, height: int, colors=(GL.GL_RGBA32F,), *,
-                 depth: bool = True, linear: bool = False):
+                 depth: bool = True, linear: bool = False, layers: int = 1):
         self.width, self.height = width, height
         self.id = GL.glGenFramebuffers(1)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.id)
-        self.colors = [Texture(width, height, f, linear=linear) for f in colors]
-        for i, tex in enumerate(self.colors):
-            GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i,
-                                      GL.GL_TEXTURE_2D, tex.id, 0)
+        self.colors = [Texture(width, height, f, linear=linear, layers=layers) for f in colors]
+        self._attach_colors(0)
         self.depth = Texture(width, height, GL.GL_DEPTH24_STENCIL8) if depth else None
         if self.depth:
             GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT,
@@ -82,6 +95,21 @@ class Framebuffer:
         if status != GL.GL_FRAMEBUFFER_COMPLETE:
             self.release()
             raise RuntimeError(f"framebuffer {width}x{height} incomplete: status 0x{status:x}")
+
+    def _attach_colors(self, layer: int) -> None:
+        for i, tex in enumerate(self.colors):
+            if tex.layers > 1:
+                GL.glFramebufferTextureLayer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i,
+                                             tex.id, 0, layer)
+            else:
+                GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0 + i,
+                                          GL.GL_TEXTURE_2D, tex.id, 0)
+
+    def attach_layer(self, layer: int) -> "Framebuffer":
+        """Bind the framebuffer drawing into ``layer`` of its colour arrays."""
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.id)
+        self._attach_colors(layer)
+        return self.bind()
 
     @property
     def nbytes(self) -> int:

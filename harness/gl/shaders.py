@@ -114,6 +114,8 @@ class Program:
                     GL.glUniformMatrix3fv(loc, 1, GL.GL_TRUE, a)
                 case (4, 4):
                     GL.glUniformMatrix4fv(loc, 1, GL.GL_TRUE, a)
+                case (count, 4, 4):  # a mat4 array
+                    GL.glUniformMatrix4fv(loc, count, GL.GL_TRUE, a)
                 case _:
                     raise ValueError(f"uniform {name}: unsupported shape {a.shape}")
         return self

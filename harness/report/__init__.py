@@ -8,13 +8,15 @@ under ``DIR/images/``, which the viewer opens on a click when they are there.
 
 The page's parts, one module each:
 
-- ``overview``: across all scenes, per technique its share of cost-accuracy fronts, its median
+- ``overview``: per band of scene size, per technique its share of cost-accuracy fronts, its median
   cost ratio to the baseline technique (sm) at equal error and its worst case; the renderer's
   caveat; failures and noisy runs counted; the table of scenes (thumbnail, description, the
   cheapest good-enough pick);
 - ``scene_section``: per scene the cost-accuracy plot (``plots``), which technique within each
   error threshold and time budget, every run in a table;
 - ``viewer``: any run's reference, V, signed error, shaded image, worst edge crops and maps;
+- ``scale``: with family scenes, cost at equal error against triangles, the fitted exponents,
+  the fronts per size and the crossover table;
 - ``stability``: scenes x techniques with failures, NaN/Inf and V outside [0, 1];
 - ``papers``: the Papers page; ``compare``: two results folders run by run.
 
@@ -29,6 +31,7 @@ from pathlib import Path
 
 from .. import analysis, registry
 from . import images, overview, plots
+from .scale import scale_view
 from .papers import build_papers_page, papers_link
 from .render import render, write_page
 from .scene_section import scene_section, shown_rows
@@ -72,9 +75,10 @@ def build_report(out_dir: str | Path) -> Path:
         "index.html.j2", folder=str(out_dir), meta=meta,
         caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
         hidden=len(everything) - len(shown),
-        summaries=overview.summaries(current, shown, colours), colours=colours,
+        verdicts=overview.verdicts(current, shown, colours), colours=colours,
         baseline=registry.baseline() or "the baseline",
         scenes=scenes, stability=stability_table(shown),
+        scale=scale_view(current, colours, registry.baseline()),
         theta=plots.theta(current, colours), notes=folder.notes,
         papers=papers_link(folder.root),
         built=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))

@@ -1,11 +1,12 @@
-"""The overview: the answer across all scenes in one screen. Per technique, how often it is on a
-scene's cost-accuracy front, its median cost ratio to the baseline technique at equal error and
-its worst case (:func:`harness.analysis.summary`, for every cost and error axis the results have); the
+"""The overview: the answer across all scenes in one screen. Per band of scene size (toy scenes
+are not pooled with production-sized ones) and technique, how often it is on a scene's
+cost-accuracy front, its median cost ratio to the baseline technique at equal error and its worst
+case (:func:`harness.analysis.summary`, for every cost and error axis the results have); the
 renderer and what its times mean; failures and noisy runs counted; then the table of scenes."""
 
 from __future__ import annotations
 
-from .. import analysis
+from .. import analysis, scaling
 from ..timing import is_software_renderer, too_noisy
 from . import plots
 
@@ -33,13 +34,30 @@ def counts(shown, current) -> dict:
             "noisy_warning": too_noisy(noisy, len(timed))}
 
 
-def summaries(current, shown, colours: dict[str, str]) -> list[dict]:
+def verdicts(current, shown, colours: dict[str, str]) -> list[dict]:
+    """Per size band the current runs fall in (:func:`harness.scaling.size_band`, smallest
+    first, unknown last): its scenes and its :func:`summaries`."""
+    bands, shown_bands = scaling.size_band(current), scaling.size_band(shown)
+    costs, errors = plots.axes(current, plots.COSTS), plots.axes(current, plots.ERRORS)
+    out = []
+    for band in [label for label, _, _ in scaling.SIZE_BANDS] + [scaling.UNKNOWN_SIZE]:
+        rows = current[bands == band]
+        if len(rows):
+            out.append({"band": band, "unknown": band == scaling.UNKNOWN_SIZE,
+                        "scenes": sorted(set(rows["scene"])),
+                        "tables": summaries(rows, shown[shown_bands == band], colours,
+                                            costs, errors)})
+    return out
+
+
+def summaries(current, shown, colours: dict[str, str], costs: dict[str, str],
+              errors: dict[str, str]) -> list[dict]:
     """One table per (cost, error) axis pair: per technique its front share, cost ratio to the
     baseline at equal error and worst case, with its failed and noisy runs."""
     failed = shown[shown["status"] == "error"].groupby("technique").size()
     tables = []
-    for cost, cost_title in plots.axes(current, plots.COSTS).items():
-        for error, error_title in plots.axes(current, plots.ERRORS).items():
+    for cost, cost_title in costs.items():
+        for error, error_title in errors.items():
             table = analysis.summary(current, cost=cost, error=error)
             rows = []
             for r in table.to_dict("records"):

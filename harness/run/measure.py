@@ -100,6 +100,7 @@ def _start(spec: RunSpec, frame, row: dict) -> _Timed:
     warmup = max(spec.warmup, 1) if moving else spec.warmup
 
     def prepare():
+        cls.check_light(frame.scene.light)
         timed.technique = cls(cls.Params(**spec.params))
         timed.technique.prepare(frame)
         with frame.metered(timed.meter):  # not a measured frame: untimed

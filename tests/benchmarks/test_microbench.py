@@ -26,10 +26,21 @@ def box_frame(gl_context, scene_at):
     frame.release()
 
 
-@pytest.mark.parametrize("name", list(registry.techniques()))
-def test_technique_frame_512(benchmark, box_frame, name):
+def one_frame_of(technique, frame):
+    """A callable rendering one unmeasured frame of a prepared technique, to the GPU's end."""
     from OpenGL import GL  # after gl_context picked the platform
 
+    def one_frame():
+        frame.meter.new_frame(measuring=False)
+        output = technique.render(frame)
+        GL.glFinish()  # the frame is done when the GPU is, not when the calls return
+        return output
+
+    return one_frame
+
+
+@pytest.mark.parametrize("name", list(registry.techniques()))
+def test_technique_frame_512(benchmark, box_frame, name):
     from harness.technique import NotApplicable, reset_gl_state
 
     cls = registry.get(name)
@@ -39,13 +50,8 @@ def test_technique_frame_512(benchmark, box_frame, name):
         technique.prepare(box_frame)
         technique.update(box_frame)
 
-        def one_frame():
-            box_frame.meter.new_frame(measuring=False)
-            output = technique.render(box_frame)
-            GL.glFinish()  # the frame is done when the GPU is, not when the calls return
-            return output
-
-        output = benchmark.pedantic(one_frame, rounds=FRAME_ROUNDS, warmup_rounds=2)
+        output = benchmark.pedantic(one_frame_of(technique, box_frame), rounds=FRAME_ROUNDS,
+                                    warmup_rounds=2)
     except NotApplicable as e:
         pytest.skip(f"{name} does not apply to box_plane: {e}")
     finally:
