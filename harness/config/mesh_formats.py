@@ -113,10 +113,14 @@ def check_numbers(data: bytes, fmt: str) -> None:
     """Every number a binary STL stores, named by vertex and triangle, before trimesh reads
     past them (an OBJ's are checked by line as it is read: :class:`_ObjLines`)."""
     if fmt == "stl" and _stl_binary(data):
-        records = np.frombuffer(data, np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)),
-                                                ("attribute", "<u2")]), offset=STL_HEADER)
+        records = _stl_records(data)
         _finite(records["v"].reshape(-1, 3), lambda i: f"vertex {i} (triangle {i // 3})")
         _finite(records["normal"], lambda t: f"normal of triangle {t}")
+
+
+def _stl_records(data: bytes) -> np.ndarray:
+    return np.frombuffer(data, np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)),
+                                         ("attribute", "<u2")]), offset=STL_HEADER)
 
 
 def check_vertices(vertices: np.ndarray, name: str) -> None:
@@ -273,6 +277,10 @@ def read_parts(path, fmt: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
 
     if fmt == "obj":
         return _read_obj(Path(path).read_bytes())
+    if fmt == "stl" and _stl_binary(data := Path(path).read_bytes()):  # no need of trimesh
+        vertices = _stl_records(data)["v"].reshape(-1, 3).astype(np.float64)
+        return [("stl", vertices, np.arange(len(vertices)).reshape(-1, 3))] if len(vertices) \
+            else []
     scene = trimesh.load(path, file_type=fmt, force="scene", process=False)
     parts = []
     for node in scene.graph.nodes_geometry:
