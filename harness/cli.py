@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import logging
 import os
 import sys
 import time
@@ -34,7 +35,27 @@ def _names(option: str, text: str | None) -> list[str] | None:
     if not names:
         raise ConfigError(f"{option} {text!r}: names nothing; give comma-separated names, or "
                           "leave the option out for all")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigError(f"{option} {text!r}: names {', '.join(repeated)} more than once")
     return names
+
+
+def _check_out(text: str) -> None:
+    """``--out`` must be, or be creatable as, a folder of our own: a ConfigError naming
+    ``--out`` otherwise, before anything is planned or written."""
+    out = Path(text).resolve()
+    if out.parts[1:2] in (("proc",), ("sys",)):
+        raise ConfigError(f"--out {text}: is under /{out.parts[1]}, the kernel's files, not a "
+                          "place for results")
+    existing = next(p for p in (out, *out.parents) if os.path.lexists(p))
+    if not existing.is_dir():
+        what = "is a file" if existing == out else f"lies under {existing}, a file"
+        raise ConfigError(f"--out {text}: {what}, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        reason = ("Read-only file system" if os.statvfs(existing).f_flag & os.ST_RDONLY
+                  else "permission denied")
+        raise ConfigError(f"--out {text}: cannot write in {existing}: {reason}")
 
 
 def cmd_list(args) -> int:
@@ -100,6 +121,10 @@ def cmd_list(args) -> int:
                   f"{'+'.join(scene.effects)}")
             if scene.description:
                 print(f"      {scene.description}")
+            for obj in scene.objects:
+                if isinstance(obj, config.MeshFile):
+                    parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
+                    print(f"      mesh {obj.path}: {parts.summary()}")
     else:
         print(f"scenes: no scene file at {path}")
     return 0
@@ -112,12 +137,14 @@ def cmd_run(args) -> int:
         raise ConfigError("--scheduler goes with --executor dask")
     if not 1 <= args.workers <= MAX_WORKERS:
         raise ConfigError(f"--workers: must be in [1, {MAX_WORKERS}], got {args.workers}")
+    _check_out(args.out)
     plan = run.plan_runs(
         experiment_path=args.experiment, scene_file=args.scene_file,
         scenes=_names("--scenes", args.scenes),
         techniques=_names("--techniques", args.techniques),
         overrides=run.parse_overrides(args.set or []),
-        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
+        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
+                "max_runs": args.max_runs})
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
@@ -183,6 +210,7 @@ def cmd_reference(args) -> int:
             check_resolution(args.resolution)
         except ValueError as e:
             raise ConfigError(f"--resolution: {e}") from None
+    _check_out(args.out)
     scene = load_scene(args.scene, args.scene_file)
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)
@@ -257,6 +285,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--statistics", metavar="METHOD",
                    help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
                         "(default: the experiment's, else order)")
+    q.add_argument("--max-runs", metavar="N",
+                   help="refuse a plan of more runs (default: the experiment's, else 5000)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -300,9 +330,11 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
             if getattr(args, "platform", None):
                 os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(record=True) as caught, _LogRecords() as logged:
                 warnings.simplefilter("default")
-                return args.func(args)
+                code = args.func(args)
+            _log_warnings(args, [_warning_line(w) for w in caught] + logged.lines)
+            return code
         except KeyboardInterrupt:
             interrupt.announce()
             if argv is None:
@@ -321,6 +353,47 @@ def main(argv: list[str] | None = None) -> int:
             code, message = known
             print(f"shadowbench: {_printable(message)}", file=sys.stderr)
             return code
+
+
+WARNINGS_LOG = "warnings.log"
+
+
+class _LogRecords(logging.Handler):
+    """Warnings that libraries log (trimesh logs rather than warns) kept as lines, in place of
+    logging's last resort, which prints them on stderr."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(f"{record.levelname} {record.name}: "
+                          f"{' '.join(record.getMessage().split())}")
+
+    def __enter__(self):
+        logging.getLogger().addHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        logging.getLogger().removeHandler(self)
+
+
+def _warning_line(w: warnings.WarningMessage) -> str:
+    return (f"{w.category.__name__} {Path(w.filename).name}:{w.lineno}: "
+            f"{' '.join(str(w.message).split())}")
+
+
+def _log_warnings(args, lines: list[str]) -> None:
+    """Libraries' warnings (trimesh, scikit-image, NumPy, Mitsuba) go to DIR/warnings.log of
+    the command's folder, never onto the terminal among the progress lines and the result; a
+    warning about one run's numbers is in that run's ``warnings`` column already. Without a
+    folder (compare, list) they are dropped; a bad input (exit 2) logs nothing."""
+    folder = getattr(args, "out", None) or getattr(args, "dir", None)
+    if not lines or folder is None or not Path(folder).is_dir():
+        return
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%S")
+    with open(Path(folder) / WARNINGS_LOG, "a", encoding="utf-8") as log:
+        log.writelines(f"{stamp} {line}\n" for line in lines)
 
 
 def _known_failure(e: Exception) -> tuple[int, str] | None:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import square_number
+from .config import cache_root, square_number
 from .results import save_arrays
 from .scene import BuiltScene
 
@@ -55,8 +55,7 @@ class Reference:
 
 
 def cache_dir() -> Path:
-    root = os.environ.get("SHADOWBENCH_CACHE") or Path.home() / ".cache" / "shadowbench"
-    return Path(root) / "reference"
+    return cache_root() / "reference"
 
 
 def _llvm_libraries() -> list[tuple[int, str]]:

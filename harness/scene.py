@@ -170,7 +170,7 @@ def _plane(size) -> trimesh.Trimesh:
     return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
 
 
-def _base_mesh(obj, source: Path | None) -> trimesh.Trimesh:
+def _base_mesh(obj) -> trimesh.Trimesh:
     c = trimesh.creation
     match obj:
         case cfg.Plane():
@@ -186,30 +186,40 @@ def _base_mesh(obj, source: Path | None) -> trimesh.Trimesh:
                              count=[obj.sections, obj.sections])
         case cfg.Lathe():
             return c.revolve(np.asarray(obj.profile, dtype=float), sections=obj.sections)
-        case cfg.MeshFile():
-            return cfg.load_mesh(cfg.resolve_mesh_path(source or Path("."), obj))
     raise TypeError(f"unknown object {obj!r}")
+
+
+def _object_parts(obj, source: Path | None) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(name, vertices float64, faces int32) of one copy of the object, in its own frame: a
+    mesh file's parts (cached: harness.config.mesh_files), or trimesh's construction."""
+    if isinstance(obj, cfg.MeshFile):
+        mesh = cfg.mesh_parts(cfg.resolve_mesh_path(source or Path("."), obj), obj.up)
+        return [(f":{name}" if len(mesh.names) > 1 else "", v, f)
+                for name, v, f in zip(mesh.names, mesh.vertices, mesh.faces)]
+    base = _base_mesh(obj)
+    return [("", np.asarray(base.vertices, dtype=np.float64),
+             np.asarray(base.faces, dtype=np.int32))]
 
 
 def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
     parts = []
     for index, obj in enumerate(scene.objects):
         raise_if_interrupted()  # trimesh catches BaseException, Ctrl-C included
-        base = _base_mesh(obj, source)
+        pieces = _object_parts(obj, source)
         raise_if_interrupted()
-        base.apply_transform(_transform(obj))
-        vertices = np.asarray(base.vertices, dtype=np.float64)
-        faces = np.asarray(base.faces, dtype=np.int32)
+        transform = _transform(obj)
         array = obj.array or cfg.Array()
-        for ix in np.ndindex(*array.count):
-            offset = np.asarray(ix, dtype=float) * np.asarray(array.step)
-            parts.append(MeshPart(
-                name=f"{index}:{obj.shape}" + (f"{list(ix)}" if obj.array else ""),
-                vertices=(vertices + offset).astype(np.float32),
-                faces=faces,
-                albedo=obj.albedo,
-                object_index=index,
-            ))
+        for suffix, local, faces in pieces:
+            vertices = trimesh.transformations.transform_points(local, transform)
+            for ix in np.ndindex(*array.count):
+                offset = np.asarray(ix, dtype=float) * np.asarray(array.step)
+                parts.append(MeshPart(
+                    name=f"{index}:{obj.shape}{suffix}" + (f"{list(ix)}" if obj.array else ""),
+                    vertices=(vertices + offset).astype(np.float32),
+                    faces=faces,
+                    albedo=obj.albedo,
+                    object_index=index,
+                ))
     return parts
 
 

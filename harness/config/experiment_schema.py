@@ -3,15 +3,16 @@ techniques over which parameter grids, the timing and reference settings) and it
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Literal, Union
 
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..timing import STATISTICS
-from .limits import DEFAULT_TRIANGLE_BUDGET
+from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET
 from .scene_schema import SquareInt, Strict
-from .yaml_source import ConfigError, format_validation_error, read_yaml
+from .yaml_source import ConfigError, _line_of, format_validation_error, key_error, read_yaml
 
 Scalar = Union[bool, int, float, str]
 
@@ -57,6 +58,12 @@ class Grid(Strict):
             raise ValueError(f"zip lists must have equal lengths, got {sorted(lengths)}")
         return self
 
+    def count(self) -> int:
+        """How many combinations :meth:`combinations` gives, without making them (a product
+        of long lists can stand for billions)."""
+        rows = len(next(iter(self.zip.values()))) if self.zip else 1
+        return math.prod(len(values) for values in self.product.values()) * rows
+
     def combinations(self) -> list[dict]:
         import itertools
 
@@ -86,6 +93,8 @@ class Experiment(Strict):
     # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
     statistics: Literal[STATISTICS] = "order"
     reference: ReferenceSettings = ReferenceSettings()
+    # a typo in a grid (10,000 values for 10) is refused before hours of work, not run
+    max_runs: int = Field(DEFAULT_MAX_RUNS, ge=1)
 
     @field_validator("scenes")
     @classmethod
@@ -127,7 +136,8 @@ def with_timing(exp: Experiment, **options) -> Experiment:
         first = e.errors()[0]
         option = str(first["loc"][0])
         msg = first["msg"].removeprefix("Value error, ")
-        raise ConfigError(f"--{option}: {msg}, got {given.get(option)!r}") from None
+        raise ConfigError(f"--{option.replace('_', '-')}: {msg}, got "
+                          f"{given.get(option)!r}") from None
 
 
 def load_experiment(path: str | Path) -> tuple[Experiment, object]:
@@ -146,9 +156,25 @@ def load_experiment(path: str | Path) -> tuple[Experiment, object]:
         data = {**data, "techniques": {name: _grids(path, node, name, grids)
                                        for name, grids in techniques.items()}}
     try:
-        return Experiment.model_validate(data), node
+        experiment = Experiment.model_validate(data)
     except ValidationError as e:
         raise ConfigError(format_validation_error(path, e, node)) from None
+    if isinstance(experiment.scenes, list):
+        _no_repeats(path, node, experiment.scenes)
+    return experiment, node
+
+
+def _no_repeats(path: Path, node, scenes: list[str]) -> None:
+    """A scene listed twice is a mistake (a name meant and another typed), not a request to
+    run it twice: both positions are named."""
+    first: dict[str, int] = {}
+    for i, name in enumerate(scenes):
+        if name in first:
+            where = [f"{path}:{_line_of(node, ('scenes', j))} (scenes.{j})"
+                     for j in (first[name], i)]
+            raise key_error(path, node, ("scenes", i),
+                            f"scene {name!r} is listed twice, at {' and '.join(where)}")
+        first[name] = i
 
 
 def _grids(path: Path, node, name: str, grids) -> Grid | list[Grid]:

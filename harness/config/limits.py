@@ -13,6 +13,8 @@ Every number must be finite, and within what the renderers can represent:
   limit. At near 1e-7, far 1e9 a box 6 units away rounds to 1 and the GL view covers nothing;
 - a scene's triangles at most ``DEFAULT_TRIANGLE_BUDGET`` (1,000,000: about 0.8 GB and a minute
   per shadow-volume run on 2 cores), or the experiment's ``triangle_budget``;
+- a plan's runs at most ``DEFAULT_MAX_RUNS`` (5,000: about three hours at 2 s a run), or the
+  experiment's ``max_runs`` (the command line's ``--max-runs``);
 - scene names (they name folders under ``--out``) from ``NAME_PATTERN``: letters, digits,
   ``_``, ``-`` and ``.``, not starting with ``.``, at most 64 characters.
 """
@@ -22,6 +24,7 @@ import re
 MAX_COORDINATE = 1e7
 MAX_DEPTH_RATIO = 2 ** 20
 DEFAULT_TRIANGLE_BUDGET = 1_000_000
+DEFAULT_MAX_RUNS = 5_000
 # degrees; no one benchmarks a narrower view, and toward 0 the projection's 1 / tan(fov / 2)
 # overflows float32
 MIN_FOV = 0.01

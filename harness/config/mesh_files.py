@@ -1,18 +1,56 @@
-"""Config's mesh files, above yaml_source: where a scene's ``shape: mesh`` file lies, loading
-it, and its triangle count, which scene_schema's load_scenes adds to the scene's budget."""
+"""Config's mesh files, above yaml_source and mesh_formats: where a scene's ``shape: mesh`` file
+lies, its parts (loaded once, and cached on disk by the file's content as references are, so a
+10^6-triangle file is read in seconds once and in a fraction of one after), and the check that
+scene_schema's load_scenes runs: the file is a regular file, its header fits the budget before
+it is loaded, and every number and index in it is usable."""
 
 from __future__ import annotations
 
+import hashlib
+import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .limits import MAX_COORDINATE
-from .yaml_source import key_error
+from .mesh_formats import (check_numbers, check_vertices, declared_triangles, mesh_format,
+                           read_parts)
+from .yaml_source import check_regular_file, key_error
 
 if TYPE_CHECKING:
     from .scene_schema import MeshFile
+
+MESH_CACHE_VERSION = 1  # bump when what is cached (or how it is built) changes
+# y-up assets (most of them) turned so that their +y is the scene's +z
+UP_ROTATION = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
+
+
+def cache_root() -> Path:
+    """Where built references and meshes are kept: $SHADOWBENCH_CACHE, else ~/.cache."""
+    return Path(os.environ.get("SHADOWBENCH_CACHE") or Path.home() / ".cache" / "shadowbench")
+
+
+@dataclass(frozen=True)
+class MeshParts:
+    """A mesh file's parts as the scene uses them: z up, exact duplicate vertices merged,
+    zero-area triangles dropped (``dropped`` counts them), each part closed or not (every
+    edge shared by exactly two faces, in opposite directions)."""
+
+    names: tuple[str, ...]
+    vertices: tuple[np.ndarray, ...]  # (V, 3) float64 each
+    faces: tuple[np.ndarray, ...]  # (F, 3) int32 each
+    closed: tuple[bool, ...]
+    dropped: int
+
+    @property
+    def triangles(self) -> int:
+        return sum(len(f) for f in self.faces)
+
+    def summary(self) -> str:
+        open_parts = self.closed.count(False)
+        return (f"{self.triangles:,} triangles in {len(self.names)} parts ({open_parts} open)"
+                + (f", {self.dropped:,} degenerate dropped" if self.dropped else ""))
 
 
 def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
@@ -20,14 +58,34 @@ def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
     return p if p.is_absolute() else Path(scene_path).parent / p
 
 
-def load_mesh(mesh_path: Path):
-    """trimesh's mesh from a file; a ``ValueError`` naming what is wrong when it is not one."""
-    import trimesh
+_loaded: dict[str, MeshParts] = {}  # by cache key: the scene check and the build share one
 
+
+def mesh_parts(mesh_path: Path, up: str = "z", data: bytes | None = None) -> MeshParts:
+    """The file's parts, from this process's memory, the disk cache or the file; a ValueError
+    naming what is wrong when it cannot be used."""
+    data = Path(mesh_path).read_bytes() if data is None else data
+    key = hashlib.sha256(data + f"|{up}|{MESH_CACHE_VERSION}".encode()).hexdigest()[:24]
+    if key not in _loaded:
+        path = cache_root() / "mesh" / f"{key}.npz"
+        parts = _read_cache(path)
+        if parts is None:
+            parts = _build(mesh_path, data, up)
+            _write_cache(path, parts)
+        _loaded[key] = parts
+    return _loaded[key]
+
+
+def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     from ..interrupt import raise_if_interrupted
 
+    fmt = mesh_format(mesh_path)
+    declared_triangles(data, fmt)  # a lying header is named before trimesh misreads it
+    check_numbers(data, fmt)
     try:
-        mesh = trimesh.load(mesh_path, force="mesh")
+        found = read_parts(mesh_path, fmt)
+    except ValueError:
+        raise  # ours, naming the line or element
     except ModuleNotFoundError:
         # trimesh's last resort for text it cannot decode as UTF-8 is an optional module
         raise ValueError("not a mesh file trimesh can read (neither its binary format nor "
@@ -36,24 +94,117 @@ def load_mesh(mesh_path: Path):
         raise ValueError(" ".join(f"{type(e).__name__}: {e}".split())[:300]) from None
     finally:
         raise_if_interrupted()  # trimesh catches BaseException in places, Ctrl-C included
-    faces = getattr(mesh, "faces", None)
-    if faces is None or len(faces) == 0:
+    if not found:
         raise ValueError("no triangles")
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    if not np.all(np.abs(vertices) <= MAX_COORDINATE):
-        raise ValueError(f"vertex coordinates must be finite and within +-{MAX_COORDINATE:g}")
-    return mesh
+    names, vertices, faces, closed, dropped, total = [], [], [], [], 0, 0
+    for name, v, f in found:
+        where = f"part {name!r}: " if len(found) > 1 else ""
+        if fmt != "obj":  # an OBJ's numbers were checked by line
+            check_vertices(v, where)
+        bad = np.flatnonzero((f < 0) | (f >= len(v)))
+        if len(bad):
+            face, corner = divmod(int(bad[0]), 3)
+            raise ValueError(f"{where}face {face} indexes vertex {f[face, corner]}, and there "
+                             f"are {len(v)} vertices")
+        v, f = _merge_duplicates(v @ UP_ROTATION[up].T + 0.0, f)  # + 0: no -0.0 apart from 0
+        good = _nonzero_area(v, f)
+        total += len(f)
+        dropped += int(len(f) - good.sum())
+        if good.any():
+            f = f[good].astype(np.int32)
+            names.append(name)
+            vertices.append(v)
+            faces.append(f)
+            closed.append(_closed(f))
+    if not faces:
+        raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
+    return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped)
 
 
-def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile) -> int:
-    """The mesh file's triangle count; a ConfigError naming the key when it cannot be used."""
+def _merge_duplicates(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact duplicate vertices become one (STL repeats each vertex in every triangle), kept
+    in order of first appearance, and the unreferenced ones dropped."""
+    used, faces = np.unique(faces, return_inverse=True)
+    vertices = vertices[used]
+    rows = np.ascontiguousarray(vertices).view(np.dtype((np.void, 24))).ravel()
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return vertices[first[order]], rank[inverse.ravel()][faces.reshape(-1, 3)]
+
+
+def _nonzero_area(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    tri = vertices[faces]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return area2 > 0
+
+
+def _closed(faces: np.ndarray) -> bool:
+    """Every directed edge once, and its reverse present: a closed, consistently wound
+    surface (what sv's silhouette volumes need)."""
+    edges = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64)
+    n = int(faces.max()) + 1
+    keys = np.sort(edges[:, 0] * n + edges[:, 1])
+    if (np.diff(keys) == 0).any():
+        return False
+    reverse = edges[:, 1] * n + edges[:, 0]
+    at = np.minimum(np.searchsorted(keys, reverse), len(keys) - 1)
+    return bool((keys[at] == reverse).all())
+
+
+def _read_cache(path: Path) -> MeshParts | None:
+    """The cached parts at ``path``; None when missing, unreadable or foreign (a miss)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            vertex_ends, face_ends = z["vertex_ends"], z["face_ends"]
+            vertices = np.split(z["vertices"], vertex_ends[:-1])
+            faces = np.split(z["faces"], face_ends[:-1])
+            return MeshParts(tuple(str(n) for n in z["names"]), tuple(vertices), tuple(faces),
+                             tuple(bool(c) for c in z["closed"]), int(z["dropped"]))
+    except (OSError, ValueError, KeyError, EOFError):
+        return None
+
+
+def _write_cache(path: Path, parts: MeshParts) -> None:
+    """Written whole to a temporary file and renamed, so a reader never sees half of it; a
+    cache that cannot be written (full disk, read-only) only costs the next load its time."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_suffix(f".{os.getpid()}.tmp")
+        with open(temporary, "wb") as f:
+            np.savez(f, names=np.array(parts.names), closed=np.array(parts.closed),
+                     dropped=parts.dropped, vertices=np.concatenate(parts.vertices),
+                     faces=np.concatenate(parts.faces),
+                     vertex_ends=np.cumsum([len(v) for v in parts.vertices]),
+                     face_ends=np.cumsum([len(f) for f in parts.faces]))
+        os.replace(temporary, path)
+    except OSError:
+        pass
+
+
+def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile,
+                triangle_budget: int | None = None) -> int:
+    """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
+    A file whose header declares more than ``triangle_budget`` is refused before loading."""
     loc = ("scenes", scene_name, "objects", index, "path")
     mesh_path = resolve_mesh_path(path, obj)
-    if mesh_path.is_dir():
-        raise key_error(path, node, loc, f"{mesh_path} is a folder, not a mesh file")
-    if not mesh_path.is_file():
-        raise key_error(path, node, loc, f"no such file: {mesh_path}")
     try:
-        return len(load_mesh(mesh_path).faces)
-    except ValueError as e:
-        raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: {e}") from None
+        check_regular_file(mesh_path)
+    except FileNotFoundError:
+        raise key_error(path, node, loc, f"no such file: {mesh_path}") from None
+    except (OSError, ValueError) as e:
+        raise key_error(path, node, loc, f"{mesh_path}: {getattr(e, 'strerror', None) or e}") \
+            from None
+    try:
+        data = mesh_path.read_bytes()
+        declared = declared_triangles(data, mesh_format(mesh_path))
+        if triangle_budget is not None and declared > triangle_budget:
+            raise key_error(path, node, loc,
+                            f"{mesh_path} declares {declared:,} triangles, more than the budget "
+                            f"of {triangle_budget:,} (an experiment may raise it with "
+                            "triangle_budget:)")
+        return mesh_parts(mesh_path, obj.up, data).triangles
+    except (ValueError, OSError) as e:
+        raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: "
+                                         f"{getattr(e, 'strerror', None) or e}") from None

@@ -205,7 +205,8 @@ class Lathe(Placed):
 
 class MeshFile(Placed):
     shape: Literal["mesh"]
-    path: str
+    path: str  # .obj, .ply, .stl, .glb or .gltf, relative to the scene file
+    up: Literal["y", "z"] = "z"  # the file's up axis; a y-up file is turned so +y is +z
 
 
 SceneObject = Annotated[
@@ -361,9 +362,11 @@ def load_scenes(path: str | Path, *,
     for name, scene in scene_file.scenes.items():
         total = 0
         for i, obj in enumerate(scene.objects):
-            one = (_check_mesh(path, node, name, i, obj) if isinstance(obj, MeshFile)
-                   else obj.triangles())
-            total += one * math.prod(obj.array.count if obj.array else (1, 1, 1))
+            copies = math.prod(obj.array.count if obj.array else (1, 1, 1))
+            one = (_check_mesh(path, node, name, i, obj, triangle_budget and
+                               triangle_budget // copies)
+                   if isinstance(obj, MeshFile) else obj.triangles())
+            total += one * copies
         if triangle_budget is not None and total > triangle_budget:
             raise key_error(path, node, ("scenes", name, "objects"),
                             f"{total:,} triangles, more than the budget of {triangle_budget:,} "

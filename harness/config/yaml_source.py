@@ -3,6 +3,8 @@ ConfigErrors (file, key path, line) that mesh_files and the two schemas raise th
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 import yaml
@@ -86,14 +88,33 @@ def format_validation_error(path: Path, err: ValidationError, root_node, prefix=
     return f"{where}: {keypath}: {msg}" + (f" (and {more} more)" if more else "")
 
 
+_FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+               (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+               (stat.S_ISBLK, "a block device"))
+
+
+def check_regular_file(path: Path) -> None:
+    """An OSError (no such file, ...) or a ValueError unless ``path`` is a regular file, found
+    with stat before anything opens it: opening a FIFO with no writer blocks for ever, and a
+    device can stream without end."""
+    mode = os.stat(path).st_mode
+    if not stat.S_ISREG(mode):
+        kind = next((name for test, name in _FILE_KINDS if test(mode)), "a special file")
+        raise ValueError(f"not a regular file: it is {kind}")
+
+
 def read_yaml(path: Path):
     """Parse a YAML file; return (data, root node). Errors are ConfigErrors: a file that is not
-    UTF-8 text, not YAML, repeats a key in one mapping, or expands past ``MAX_YAML_NODES``."""
+    a regular file, not UTF-8 text, not YAML, repeats a key in one mapping, or expands past
+    ``MAX_YAML_NODES``."""
     try:
+        check_regular_file(path)
         text = Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
         raise ConfigError(f"{path}: not a text file (byte {e.object[e.start]:#04x} at offset "
                           f"{e.start} is not UTF-8)") from None
+    except ValueError as e:  # after UnicodeDecodeError, one of its kinds
+        raise ConfigError(f"{path}: {e}") from None
     except OSError as e:
         raise ConfigError(f"{path}: cannot read: {e.strerror}") from None
     try:
@@ -141,8 +162,8 @@ def _check_nodes(path: Path, root) -> None:
         open_nodes.discard(id(node))
         sizes[id(node)] = total
         if total > MAX_YAML_NODES:
-            raise ConfigError(f"{path}: its aliases expand to more than {MAX_YAML_NODES:,} "
-                              "values")
+            raise ConfigError(f"{path}:{node.start_mark.line + 1}: the aliases in this value "
+                              f"expand to more than {MAX_YAML_NODES:,} values")
         return total
 
     if root is not None:

@@ -20,10 +20,15 @@ from .measure import BATCH_BYTES, BATCH_RUNS
 from .plan import Plan
 
 
+# a read-only look: without it `git status` takes .git/index.lock to refresh the index, and a
+# sweep's manifest would collide with the user's own git commands in the checkout
+GIT = ("git", "--no-optional-locks")
+
+
 def _git_commit() -> str:
     try:
         here = Path(__file__).resolve().parent
-        return subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+        return subprocess.run([*GIT, "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
                               text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -64,12 +69,25 @@ def _version(module: str) -> str:
 def _git_dirty() -> bool | None:
     try:
         here = Path(__file__).resolve().parent
-        out = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+        out = subprocess.run([*GIT, "-C", str(here), "status", "--porcelain",
                               "--untracked-files=no"], check=False, capture_output=True,
                              text=True, timeout=10)
         return bool(out.stdout.strip()) if out.returncode == 0 else None
     except (OSError, subprocess.SubprocessError):
         return None
+
+
+def _meshes(scene) -> list[dict]:
+    """Each mesh file of the scene as built: its triangles, parts (open ones: not closed),
+    and the zero-area triangles dropped from it."""
+    out = []
+    for obj in scene.config.objects:
+        if isinstance(obj, cfg.MeshFile):
+            parts = cfg.mesh_parts(cfg.resolve_mesh_path(scene.source or Path("."), obj), obj.up)
+            out.append({"path": obj.path, "triangles": parts.triangles, "parts": len(parts.names),
+                        "open_parts": parts.closed.count(False),
+                        "degenerate_dropped": parts.dropped})
+    return out
 
 
 MANIFEST_FILE = "manifest.json"
@@ -144,7 +162,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment_hash": plan.experiment_hash,
         "runs_planned": len(plan.runs),
         "scenes": {name: {"description": scene.config.description,
-                          "effects": list(scene.config.effects)}
+                          "effects": list(scene.config.effects), "meshes": _meshes(scene)}
                    for name, scene in plan.scenes.items()},
         "started": invocations[0]["started"],
         "finished": (previous.get("finished") if same and previous.get("finished")

@@ -151,19 +151,20 @@ def _batches(specs: list[RunSpec], start):
 
 
 def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
-              renderer: str):
+              renderer: str, on_frame=None):
     """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
     interleaved rounds; yields ``(spec, row, arrays)`` as each run finishes (arrays None
     unless it ran). Never raises for a technique's failure: that is the row's status.
 
     On a moving scene (``frame.frames`` > 1, ``reference`` its frame 0's) each round is a
-    frame of the sequence: :func:`_run_sequence`."""
+    frame of the sequence: :func:`_run_sequence`, which calls ``on_frame(specs)`` with the
+    runs that rendered it as each frame ends (for the progress bar's estimate)."""
     def start(spec):
         return _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
                                                   renderer))
 
     if frame.frames > 1:
-        yield from _run_sequence(_batches(specs, start), frame)
+        yield from _run_sequence(_batches(specs, start), frame, on_frame or (lambda specs: None))
         return
     for failed, batch in _batches(specs, start):
         for timed in failed:
@@ -190,7 +191,7 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
     return row, arrays
 
 
-def _run_sequence(batches, frame):
+def _run_sequence(batches, frame, on_frame):
     """Runs on a moving scene (``frame`` at its frame 0), batch by batch: each batch goes
     through the sequence, one interleaved round per frame (each technique's update, then its
     render, measured), and each run's frame is scored as it is rendered against that frame's
@@ -223,6 +224,7 @@ def _run_sequence(batches, frame):
             for timed in live:
                 if timed.alive:
                     _attempt(timed, _observe, timed, frame, truth, previous)
+            on_frame([timed.spec for timed in live])
             previous = truth
         for timed in batch:
             if not timed.alive:

@@ -104,7 +104,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
               timing: dict | None = None) -> Plan:
     """Everything validated up front: a bad input raises ConfigError before any output.
 
-    ``timing``: command-line ``frames``, ``warmup``, ``statistics`` replacing the
+    ``timing``: command-line ``frames``, ``warmup``, ``statistics``, ``max_runs`` replacing the
     experiment's (see :func:`harness.config.with_timing`)."""
     if experiment_path:
         exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
@@ -161,6 +161,14 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             raise cfg.ConfigError(f"--set: technique {name!r} is not in this run "
                                   f"({', '.join(grids)})")
 
+    planned = len(wanted_scenes) * len(exp.resolutions or [None]) * sum(
+        len(grid_points(registered[tech], grid, ("techniques", tech), exp_path, node))
+        if grid.curve is not None else grid.count()
+        for tech, tech_grids in grids.items() for grid in tech_grids)
+    if planned > exp.max_runs:
+        raise cfg.ConfigError(f"{exp_path}: plans {planned:,} runs, more than the limit of "
+                              f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
+                              "or --max-runs on the command line")
     built = {name: build_scene(name, all_scenes[name], Path(scene_file))
              for name in wanted_scenes}
     runs: list[RunSpec] = []

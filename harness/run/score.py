@@ -3,6 +3,7 @@ its frame's reference become the row's columns (cost, timing, metrics) and its s
 
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -139,8 +140,26 @@ def _frame_arrays(output, frame, truth: _Truth, images: dict) -> dict[str, np.nd
             **{f"map_{name}": np.asarray(m, np.float32) for name, m in output.maps.items()}}
 
 
+@contextlib.contextmanager
+def _warnings_into(row: dict):
+    """Warnings raised while a run is scored concern its numbers: into its ``warnings``
+    column (each message once), never onto the terminal."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    messages = dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}"
+                             for w in caught)
+    if messages:
+        row["warnings"] = "; ".join(filter(None, [row.get("warnings"), *messages]))
+
+
 def _score(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     """The finished run's row (timing, counters, metrics) and arrays, from its last frame."""
+    with _warnings_into(timed.row):
+        return _score_row(timed, frame, reference)
+
+
+def _score_row(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     row, output = timed.row, timed.output
     row.update(_cost_columns(timed, frame))
     truth = _Truth(0, reference, frame.compared_pixels(reference.covered))
@@ -227,6 +246,11 @@ def _observe(timed, frame, truth: _Truth, previous: _Truth | None) -> None:
 def _sequence_score(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
     """A moving run's row and arrays: metrics as the mean over frames and their worst frame,
     flicker, pop frames; costs from the last frame, timing over the sequence's frames."""
+    with _warnings_into(timed.row):
+        return _sequence_row(timed, frame)
+
+
+def _sequence_row(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
     row, sequence = timed.row, timed.sequence
     row.update(_cost_columns(timed, frame))
     series = {name: np.asarray(values, np.float64) for name, values in sequence.series.items()}

@@ -18,16 +18,64 @@ from .store import _exclusive, _now, record_run
 PROGRESS_FORMAT = "{desc} | {n_fmt}/{total_fmt} runs done{postfix} | {elapsed} elapsed"
 
 
-def _cost(spec: RunSpec) -> float:
-    """Relative time of a run for the estimate of the time left: runs at 1024x1024 take many
-    times those at 256x256, so a plain runs-per-second rate misjudges a multi-resolution sweep.
-    The constant is the per-run overhead, about that of a 256x256 run."""
+def _frame_cost(spec: RunSpec) -> float:
+    """Relative time of one frame of a run, for the estimate of the time left: frames at
+    1024x1024 take many times those at 256x256, so a plain rate misjudges a multi-resolution
+    sweep. The constant is the per-frame overhead, about that of a 256x256 frame."""
     return spec.width * spec.height + 256 * 256
 
 
+def _cost(spec: RunSpec) -> float:
+    """A run's frames, warm-up included: a moving scene's run renders (and traces the
+    reference of) every frame of its sequence."""
+    return _frame_cost(spec) * (spec.frames + spec.warmup)
+
+
+class _Progress:
+    """The progress bar and its estimate of the time left, from the cost done so far: runs
+    finished and, on moving scenes, each frame as its round ends (a 1000-frame run has an
+    estimate after its first frame, not only when it ends). Renderers get it as their bar."""
+
+    REFRESH_S = 1.0  # per-frame updates redraw the bar at most this often
+
+    def __init__(self, bar, pending: list[RunSpec]):
+        self.bar, self.failed = bar, 0
+        self.left, self.done = float(sum(map(_cost, pending))), 0.0
+        self.counted: dict[str, float] = {}  # frames of unfinished runs already counted
+        self.clock = self.drawn = time.monotonic()
+
+    def set_description_str(self, text: str) -> None:
+        self.bar.set_description_str(text)
+
+    def frame_done(self, specs: list[RunSpec]) -> None:
+        for spec in specs:
+            self._advance(_frame_cost(spec))
+            self.counted[spec.run_id] = self.counted.get(spec.run_id, 0.0) + _frame_cost(spec)
+        self._show(runs_left=self.bar.total - self.bar.n)
+        if time.monotonic() - self.drawn >= self.REFRESH_S:
+            self.bar.refresh()
+            self.drawn = time.monotonic()
+
+    def run_done(self, spec: RunSpec, row: dict) -> None:
+        self.failed += row["status"] == "error"
+        self._advance(_cost(spec) - self.counted.pop(spec.run_id, 0.0))
+        self._show(runs_left=self.bar.total - self.bar.n - 1)
+        self.bar.update(1)
+
+    def _advance(self, cost: float) -> None:
+        self.done += cost
+        self.left -= cost
+
+    def _show(self, runs_left: int) -> None:
+        self.bar.set_postfix_str(
+            f"{runs_left} to go" + (f", {self.failed} failed" if self.failed else "")
+            + (f", {_time_left(time.monotonic() - self.clock, self.done, self.left)}"
+               if runs_left and self.done else ""), refresh=False)
+
+
 def _time_left(elapsed_s: float, done: float, left: float) -> str:
-    seconds = round(elapsed_s / done * left)
-    return f"about {seconds // 60}:{seconds % 60:02d} left"
+    seconds = round(elapsed_s / done * max(left, 0.0))
+    return f"about {seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d} left"
 
 
 def noisy_runs(plan: Plan, out_dir: str | Path) -> list[RunSpec]:
@@ -83,20 +131,13 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
                    disable=not progress, file=sys.stderr, dynamic_ncols=True,
                    bar_format=PROGRESS_FORMAT, postfix=f"{len(pending)} to go",
                    desc="" if pending else "nothing to render")
-        cost_left, cost_done, clock = sum(map(_cost, pending)), 0.0, time.monotonic()
+        progress = _Progress(bar, pending)
         try:
-            for spec, row in renderer(plan, pending, out_dir, context, bar):
+            for spec, row in renderer(plan, pending, out_dir, context, progress):
                 raise_if_interrupted()
                 session["runs_rendered"] += 1
                 failed += row["status"] == "error"
-                cost_done += _cost(spec)
-                cost_left -= _cost(spec)
-                left = bar.total - bar.n - 1
-                bar.set_postfix_str(
-                    f"{left} to go" + (f", {failed} failed" if failed else "")
-                    + (f", {_time_left(time.monotonic() - clock, cost_done, cost_left)}"
-                       if left else ""), refresh=False)
-                bar.update(1)
+                progress.run_done(spec, row)
             if retime_noisy:
                 again = noisy_runs(plan, out_dir)
                 session["runs_retimed"] = len(again)
@@ -152,7 +193,8 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
         try:
             bar.set_description_str(f"{scene_name} {width}x{height}: {len(specs)} runs in rounds")
             for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
-                                               context.renderer):
+                                               context.renderer,
+                                               on_frame=getattr(bar, "frame_done", None)):
                 bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
                 record_run(out_dir, spec, row, arrays, reference)
                 yield spec, row
