@@ -324,7 +324,8 @@ class SceneFile(Strict):
 def _within_budget(path: Path, node, loc: tuple, total: int, budget: int | None) -> None:
     if budget is not None and total > budget:
         raise key_error(path, node, loc, f"{total:,} triangles, more than the budget of "
-                        f"{budget:,} (an experiment may raise it with triangle_budget:)")
+                        f"{budget:,} (what fits 4 GiB for every technique; an experiment may "
+                        "raise it with triangle_budget:)")
 
 
 def load_scenes(path: str | Path, *,

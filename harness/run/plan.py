@@ -222,7 +222,8 @@ def sized_scenes(declared: dict[str, cfg.Scene], exp: cfg.Experiment, path: Path
             if triangles > exp.triangle_budget:
                 raise cfg.key_error(path, node, ("triangles", i),
                                     f"{triangles:,} triangles, more than the budget of "
-                                    f"{exp.triangle_budget:,} (raise it with triangle_budget:)")
+                                    f"{exp.triangle_budget:,} (what fits 4 GiB for every "
+                                    "technique; raise it with triangle_budget:)")
             try:
                 sized = scene.at_triangles(triangles)
             except ValueError as e:
