@@ -195,7 +195,7 @@ def test_bad_family_exits_2_naming_file_scene_and_key(case, tmp_path, capsys):
 
 @pytest.mark.parametrize("sizes,scenes,message", [
     (["1e3", "2e6"], None, "triangles.1: 2,000,000 triangles, more than the budget"),
-    (["5e2"], None, "triangles.0: scene forest: a instancing family needs at least 1,000"),
+    (["5e2"], None, "triangles.0: scene forest: the instancing family needs at least 1,000"),
     (["1e3"], ["box"], "triangles: sizes family scenes, but none"),
     ([], None, "triangles: must list at least one size"),
 ])

@@ -227,7 +227,7 @@ class Family(Strict):
     def _enough(self):
         least = FAMILY_MIN_TRIANGLES[self.kind]
         if self.triangles < least:
-            raise ValueError(f"triangles: a {self.kind} family needs at least {least:,} "
+            raise ValueError(f"triangles: the {self.kind} family needs at least {least:,} "
                              f"triangles to land within 5% of its target, got {self.triangles:,}")
         return self
 
