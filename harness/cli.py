@@ -116,9 +116,12 @@ def cmd_list(args) -> int:
     if path.is_file():
         print(f"scenes ({path}):")
         for name, scene in config.load_scenes(path, triangle_budget=None).items():
+            geometry = (f"{scene.family.kind} family, {scene.family.triangles:,} triangles"
+                        if scene.family else f"{len(scene.objects)} objects")
+            if scene.family and scene.objects:
+                geometry += f" and {len(scene.objects)} objects"
             print(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
-                  f"{scene.light.type} light, {len(scene.objects)} objects, effects "
-                  f"{'+'.join(scene.effects)}")
+                  f"{scene.light.type} light, {geometry}, effects {'+'.join(scene.effects)}")
             if scene.description:
                 print(f"      {scene.description}")
             for obj in scene.objects:

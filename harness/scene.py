@@ -16,7 +16,9 @@ import numpy as np
 import trimesh
 
 from . import config as cfg
+from . import families
 from . import motion as motion_paths
+from . import topology
 from .interrupt import raise_if_interrupted
 
 
@@ -114,12 +116,30 @@ class BuiltScene:
         v = self.triangles.reshape(-1, 3)
         return np.stack([v.min(0), v.max(0)]).astype(np.float64)
 
+    @cached_property
+    def edges(self) -> topology.Edges:
+        return topology.edges([p.vertices for p in self.parts], [p.faces for p in self.parts])
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """The per-run counts: triangles, parts, open parts, and the shadow edges seen from
+        this scene's light (harness.topology)."""
+        return {"triangles": len(self.triangles), "parts": self.edges.parts,
+                "open_parts": self.edges.open_parts,
+                "shadow_edges": topology.shadow_edges(self.edges, self.triangles, self.light)}
+
+    def _sharing_geometry(self, scene: "BuiltScene") -> "BuiltScene":
+        """``scene`` (of the same triangles) given what this one computed of them."""
+        for name in _GEOMETRY:
+            if name in self.__dict__:
+                scene.__dict__[name] = self.__dict__[name]
+        return scene
+
     def with_resolution(self, width: int, height: int) -> "BuiltScene":
         new_config = self.config.model_copy(update={"resolution": (width, height)})
-        return BuiltScene(
+        return self._sharing_geometry(BuiltScene(
             self.name, new_config, self.parts, self.light,
-            scene_key(new_config, self.source, self.poses), self.source, self.poses,
-        )
+            scene_key(new_config, self.source, self.poses), self.source, self.poses))
 
     @property
     def frames(self) -> int:
@@ -142,14 +162,12 @@ class BuiltScene:
         parts = self.parts if poses is None else motion_paths.posed(self.parts, poses)
         frame = BuiltScene(self.name, config, parts, _light(config),
                            scene_key(config, self.source, poses), self.source, poses)
-        for name in _GEOMETRY if poses is None else ():  # the same triangles: computed once
-            if name in self.__dict__:
-                frame.__dict__[name] = self.__dict__[name]
-        return frame
+        # the same triangles, unless objects moved: computed once per sequence
+        return frame if poses is not None else self._sharing_geometry(frame)
 
 
 # BuiltScene's cached properties that depend only on the geometry
-_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds")
+_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds", "edges")
 
 
 def _transform(obj: cfg.Placed) -> np.ndarray:
@@ -201,6 +219,9 @@ def _object_parts(obj, source: Path | None) -> list[tuple[str, np.ndarray, np.nd
              np.asarray(base.faces, dtype=np.int32))]
 
 
+FAMILY_ALBEDO = 0.8  # the objects' default
+
+
 def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
     parts = []
     for index, obj in enumerate(scene.objects):
@@ -220,6 +241,9 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
                     albedo=obj.albedo,
                     object_index=index,
                 ))
+    if scene.family is not None:  # no object of its own: object motions never move it
+        parts += [MeshPart(f"{scene.family.kind}:{name}", vertices, faces, FAMILY_ALBEDO, -1)
+                  for name, vertices, faces in families.build(scene.family)]
     return parts
 
 
@@ -245,12 +269,14 @@ def scene_key(scene: cfg.Scene, source: Path | None = None,
     ``description`` and the objects' names are labels and stay out, so rewording them keeps
     references and run ids. A still scene hashes as it did before scenes could move (no
     ``motion`` key), a moving one as before objects could (no ``motion.objects`` when none
-    move)."""
+    move), a scene without a family as before families (no ``family`` key)."""
     labels = {"description": True, "objects": {"__all__": {"name"}}}
     if scene.motion is None:
         labels["motion"] = True
     elif not scene.motion.objects:
         labels["motion"] = {"objects"}
+    if scene.family is None:
+        labels["family"] = True
     geometry = scene.model_dump(mode="json", exclude=labels)
     h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:

@@ -37,7 +37,8 @@ def failed_scene_row(spec: RunSpec, error: Exception) -> dict:
 def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
                    renderer: str) -> dict:
     return {**_run_columns(spec), "scene_ms": scene_ms, "frags_scene": frags_scene,
-            "renderer": renderer, "ref_seconds": reference.seconds}
+            "renderer": renderer, "ref_seconds": reference.seconds,
+            "ref_build_seconds": reference.build_seconds}
 
 
 def _timing_columns(timed) -> dict:
@@ -60,10 +61,14 @@ def _timing_columns(timed) -> dict:
 
 
 def _cost_columns(timed, frame) -> dict:
-    """Timing, counters, fill, memory and the range of V, from the run's last frame."""
+    """Timing, counters, fill, memory and the range of V, from the run's last frame, and the
+    scene's family (empty for a scene of objects) and counts (triangles, parts, open parts,
+    shadow edges from that frame's light)."""
     row, output = timed.row, timed.output
     v = output.visibility
-    columns = _timing_columns(timed)
+    family = frame.scene.config.family
+    columns = {**_timing_columns(timed), **frame.scene.counts,
+               "family": family.kind if family else ""}
     frags_shadow = (output.shadow_fragments if output.shadow_fragments is not None
                     else sum(p["fragments"] for p in columns["passes"]))
     columns.update(
