@@ -191,6 +191,144 @@ def flicker(v, v_previous, ref, ref_previous, *, mask=None, mask_previous=None) 
     return _mean(np.abs(change)[mask & mask_previous])
 
 
+# A reprojected point is on the surface frame t-1 saw there when its 1/depth matches frame
+# t-1's, interpolated bilinearly between the pixels around it, within this fraction. 1/depth
+# is linear in screen space on a plane, so on one flat face the two agree but for float32
+# rounding of the G-buffer (about 1e-6), and across a crease of a tessellated curve by a second-
+# order term (a sphere of 4 subdivisions at 256 pixels: about 2e-4); an occluder in front of
+# what is behind it differs by far more than 0.1% of its distance.
+DEPTH_TOLERANCE = 1e-3
+# a reprojected point within this many pixels of a pixel centre is at that centre: the float32
+# G-buffer positions put an exact one-pixel move 1e-4 pixels off at 256 pixels
+CENTRE_SNAP_PX = 1e-3
+
+
+def _check_reprojection(position, view_proj_previous, depth_previous, shape):
+    position = np.asarray(position, dtype=np.float64)
+    view_proj_previous = np.asarray(view_proj_previous, dtype=np.float64)
+    depth_previous = np.asarray(depth_previous, dtype=np.float64)
+    if position.shape != (*shape, 3):
+        raise ValueError(f"position must be of shape {(*shape, 3)}, got {position.shape}")
+    if view_proj_previous.shape != (4, 4):
+        raise ValueError(f"view_proj_previous must be 4x4, got {view_proj_previous.shape}")
+    if depth_previous.shape != shape:
+        raise ValueError(f"depth_previous must be of shape {shape}, got {depth_previous.shape}")
+    return position, view_proj_previous, depth_previous
+
+
+def view_depth(position, view_proj) -> np.ndarray:
+    """Clip-space w of world points ``position`` (..., 3) under ``view_proj``: for a
+    perspective camera (the harness's), their distance in front of it along its axis. The depth
+    :func:`world_flicker` compares."""
+    position = np.asarray(position, dtype=np.float64)
+    view_proj = np.asarray(view_proj, dtype=np.float64)
+    return position @ view_proj[3, :3] + view_proj[3, 3]
+
+
+def _reprojected(position, view_proj_previous, depth_previous, mask, mask_previous,
+                 depth_tolerance):
+    """The pixels of frame t (in ``mask``) whose world point frame t-1 saw: it projects inside
+    t-1's image, the (1, 2 or 4) pixels whose centres surround it are compared in t-1
+    (``mask_previous``), and its depth matches theirs (:data:`DEPTH_TOLERANCE`). Returns those
+    pixels (H, W) and, for each, the flat indices into t-1's image of the four corners around
+    it (repeated where the point is on a row or column of centres)."""
+    height, width = mask.shape
+    clip = position[mask] @ view_proj_previous[:, :3].T + view_proj_previous[:, 3]
+    w = clip[:, 3]
+    in_front = w > 0
+    safe_w = np.where(in_front, w, 1.0)
+    # continuous pixel coordinates, centres at integers, row 0 at the top
+    x = (clip[:, 0] / safe_w + 1) / 2 * width - 0.5
+    y = (1 - clip[:, 1] / safe_w) / 2 * height - 0.5
+    x = np.where(np.abs(x - np.rint(x)) < CENTRE_SNAP_PX, np.rint(x), x)
+    y = np.where(np.abs(y - np.rint(y)) < CENTRE_SNAP_PX, np.rint(y), y)
+    inside = in_front & (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)
+    x, y = np.where(inside, x, 0.0), np.where(inside, y, 0.0)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.ceil(x).astype(np.int64), np.ceil(y).astype(np.int64)
+    corners = [y0 * width + x0, y0 * width + x1, y1 * width + x0, y1 * width + x1]
+    fx, fy = x - x0, y - y0
+    weights = [(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy]
+    seen = mask_previous.ravel()
+    inverse_depth = 1.0 / np.where(seen, np.maximum(depth_previous.ravel(), 1e-300), 1.0)
+    kept = inside.copy()
+    for corner in corners:
+        kept &= seen[corner]
+    expected = sum(wt * inverse_depth[c] for wt, c in zip(weights, corners))
+    kept &= np.abs(expected * safe_w - 1) <= depth_tolerance
+    pixels = np.zeros(mask.shape, bool)
+    pixels[mask] = kept
+    return pixels, [c[kept] for c in corners]
+
+
+def _change_from_previous(now: np.ndarray, previous: np.ndarray, corners) -> np.ndarray:
+    """How far each value ``now`` lies outside the range of ``previous`` at the corners around
+    its world point (signed; 0 inside): on a point exactly at a pixel centre, now − previous."""
+    around = np.stack([previous.ravel()[c] for c in corners])
+    return now - np.clip(now, around.min(axis=0), around.max(axis=0))
+
+
+def _world_pairs(v, v_previous, position, view_proj_previous, depth_previous, mask,
+                 mask_previous, depth_tolerance):
+    v, _, mask = _check(v, v, mask)
+    v_previous, _, mask_previous = _check(v_previous, v_previous, mask_previous)
+    if v.shape != v_previous.shape:
+        raise ValueError(f"frames of different shapes: {v.shape} and {v_previous.shape}")
+    position, view_proj_previous, depth_previous = _check_reprojection(
+        position, view_proj_previous, depth_previous, v.shape)
+    return _reprojected(position, view_proj_previous, depth_previous, mask, mask_previous,
+                        depth_tolerance)
+
+
+def world_flicker(v, v_previous, ref, ref_previous, *, position, view_proj_previous,
+                  depth_previous, mask=None, mask_previous=None,
+                  depth_tolerance: float = DEPTH_TOLERANCE) -> float:
+    """:func:`flicker` at fixed world points: shimmer, the change a technique makes where the
+    surface stays put, apart from the image moving over it.
+
+    Each compared pixel p of frame t (``mask``) takes its world point (``position``, frame t's
+    G-buffer) into frame t-1's image (``view_proj_previous``); it counts where it lands inside
+    the image, between pixels compared in t-1 (``mask_previous``), on the surface t-1 saw there
+    (``depth_previous``, t-1's :func:`view_depth`, matches within ``depth_tolerance``: not
+    disoccluded). Its change is how far V_t(p) lies outside the range of V_t-1 at the pixels
+    whose centres surround the point (1 at a centre, 2 on a line of centres, else 4); the
+    truth's likewise; the value is the mean |change − change_ref|. On a point at a pixel centre
+    p' that is |(V_t(p) − V_t-1(p')) − (V_ref,t(p) − V_ref,t-1(p'))|.
+
+    Why the range and not one pixel: the point lands between pixel centres (up to half a pixel
+    from the nearest), so the nearest pixel is another world point, and a still 0/1 edge
+    between the two reads as a change (the same resampling that pixel flicker measures). A
+    bilinear blend of the surrounding V invents fractions a 0/1 technique never answers and
+    calls every still hard edge flickering. The range calls still V still anywhere (a value
+    between the surrounding ones is consistent with it) and keeps 0/1.
+
+    A pixel whose surface moved (a moving object) is a different world point in t-1: the depth
+    test drops most of them, not one sliding along itself; ``mask`` should leave them out."""
+    ref, ref_previous = np.asarray(ref, np.float64), np.asarray(ref_previous, np.float64)
+    if ref.shape != np.shape(v) or ref_previous.shape != np.shape(v_previous):
+        raise ValueError(f"references of shapes {ref.shape} and {ref_previous.shape} for "
+                         f"frames of {np.shape(v)} and {np.shape(v_previous)}")
+    pixels, corners = _world_pairs(v, v_previous, position, view_proj_previous, depth_previous,
+                                   mask, mask_previous, depth_tolerance)
+    change = _change_from_previous(np.asarray(v, np.float64)[pixels],
+                                   np.asarray(v_previous, np.float64), corners)
+    change_ref = _change_from_previous(ref[pixels], ref_previous, corners)
+    return _mean(np.abs(change - change_ref))
+
+
+def world_changed_pct(v, v_previous, *, position, view_proj_previous, depth_previous,
+                      mask=None, mask_previous=None, depth_tolerance: float = DEPTH_TOLERANCE,
+                      threshold: float = 0.0) -> float:
+    """Percent of the pixels :func:`world_flicker` compares where V changed at the world point
+    by more than ``threshold`` (lies that far outside the range around it in t-1), whatever
+    the truth did: under a still light, the share of the view that shimmers."""
+    pixels, corners = _world_pairs(v, v_previous, position, view_proj_previous, depth_previous,
+                                   mask, mask_previous, depth_tolerance)
+    change = _change_from_previous(np.asarray(v, np.float64)[pixels],
+                                   np.asarray(v_previous, np.float64), corners)
+    return float(100.0 * (np.abs(change) > threshold).mean()) if change.size else float("nan")
+
+
 POP_FACTOR = 5.0  # a frame flickering this many times the sequence's median pops
 
 
