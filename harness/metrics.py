@@ -6,6 +6,8 @@ shapes checked. ``mask`` selects the pixels compared (covered in both views); ``
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import ndimage
 
@@ -18,12 +20,16 @@ def _check(v: np.ndarray, ref: np.ndarray, mask: np.ndarray | None):
     v, ref = np.asarray(v, dtype=np.float64), np.asarray(ref, dtype=np.float64)
     if v.ndim != 2 or v.shape != ref.shape:
         raise ValueError(f"expected two 2-D arrays of one shape, got {v.shape} and {ref.shape}")
+    return v, ref, _check_mask(mask, v.shape)
+
+
+def _check_mask(mask, shape, name: str = "mask") -> np.ndarray:
     if mask is None:
-        mask = np.ones(v.shape, bool)
+        return np.ones(shape, bool)
     mask = np.asarray(mask)
-    if mask.shape != v.shape or mask.dtype != bool:
-        raise ValueError(f"mask must be bool of shape {v.shape}, got {mask.dtype} {mask.shape}")
-    return v, ref, mask
+    if mask.shape != shape or mask.dtype != bool:
+        raise ValueError(f"{name} must be bool of shape {shape}, got {mask.dtype} {mask.shape}")
+    return mask
 
 
 def _mean(values: np.ndarray) -> float:
@@ -203,43 +209,63 @@ DEPTH_TOLERANCE = 1e-3
 CENTRE_SNAP_PX = 1e-3
 
 
-def _check_reprojection(position, view_proj_previous, depth_previous, shape):
-    position = np.asarray(position, dtype=np.float64)
-    view_proj_previous = np.asarray(view_proj_previous, dtype=np.float64)
-    depth_previous = np.asarray(depth_previous, dtype=np.float64)
-    if position.shape != (*shape, 3):
-        raise ValueError(f"position must be of shape {(*shape, 3)}, got {position.shape}")
-    if view_proj_previous.shape != (4, 4):
-        raise ValueError(f"view_proj_previous must be 4x4, got {view_proj_previous.shape}")
-    if depth_previous.shape != shape:
-        raise ValueError(f"depth_previous must be of shape {shape}, got {depth_previous.shape}")
-    return position, view_proj_previous, depth_previous
-
-
 def view_depth(position, view_proj) -> np.ndarray:
     """Clip-space w of world points ``position`` (..., 3) under ``view_proj``: for a
     perspective camera (the harness's), their distance in front of it along its axis. The depth
     :func:`world_flicker` compares."""
+    return _clip_row(np.asarray(position, dtype=np.float64),
+                     np.asarray(view_proj, dtype=np.float64), 3)
+
+
+def _clip_row(points: np.ndarray, view_proj: np.ndarray, row: int) -> np.ndarray:
+    # by columns, not a matrix product: BLAS threads cost more than the sums on small arrays
+    m = view_proj[row]
+    return points[..., 0] * m[0] + points[..., 1] * m[1] + points[..., 2] * m[2] + m[3]
+
+
+@dataclass(frozen=True)
+class WorldPoints:
+    """The pixels of frame t whose world point frame t-1 saw (:func:`world_points`), and for
+    each the flat indices into t-1's image of the four pixel centres around it (repeated where
+    the point is on a row or column of centres)."""
+
+    pixels: np.ndarray  # (H, W) bool
+    corners: tuple  # four int arrays, one index per pixel of ``pixels``
+
+
+def world_points(position, view_proj_previous, depth_previous, *, mask=None,
+                 mask_previous=None, depth_tolerance: float = DEPTH_TOLERANCE) -> WorldPoints:
+    """Frame t's compared pixels (``mask``) taken to frame t-1, for :func:`world_flicker`: each
+    pixel's world point (``position``, frame t's G-buffer, (H, W, 3)) projected with t-1's
+    ``view_proj_previous``. A pixel is kept where its point lands in front of the camera and
+    inside the image, the 1, 2 or 4 pixels whose centres surround it were compared in t-1
+    (``mask_previous``), and its depth matches t-1's there (``depth_previous``, t-1's
+    :func:`view_depth`; 1/depth interpolated between them, within ``depth_tolerance``: the
+    same surface, not one t-1 saw in front of it). One computation serves every run scored on
+    the same two frames.
+
+    A pixel whose surface moved (a moving object) is another world point in t-1: the depth test
+    drops most of them, not one sliding along itself; ``mask`` should leave those out."""
     position = np.asarray(position, dtype=np.float64)
-    view_proj = np.asarray(view_proj, dtype=np.float64)
-    return position @ view_proj[3, :3] + view_proj[3, 3]
-
-
-def _reprojected(position, view_proj_previous, depth_previous, mask, mask_previous,
-                 depth_tolerance):
-    """The pixels of frame t (in ``mask``) whose world point frame t-1 saw: it projects inside
-    t-1's image, the (1, 2 or 4) pixels whose centres surround it are compared in t-1
-    (``mask_previous``), and its depth matches theirs (:data:`DEPTH_TOLERANCE`). Returns those
-    pixels (H, W) and, for each, the flat indices into t-1's image of the four corners around
-    it (repeated where the point is on a row or column of centres)."""
-    height, width = mask.shape
-    clip = position[mask] @ view_proj_previous[:, :3].T + view_proj_previous[:, 3]
-    w = clip[:, 3]
+    view_proj_previous = np.asarray(view_proj_previous, dtype=np.float64)
+    depth_previous = np.asarray(depth_previous, dtype=np.float64)
+    if position.ndim != 3 or position.shape[2] != 3:
+        raise ValueError(f"position must be of shape (H, W, 3), got {position.shape}")
+    shape = position.shape[:2]
+    if view_proj_previous.shape != (4, 4):
+        raise ValueError(f"view_proj_previous must be 4x4, got {view_proj_previous.shape}")
+    if depth_previous.shape != shape:
+        raise ValueError(f"depth_previous must be of shape {shape}, got {depth_previous.shape}")
+    mask = _check_mask(mask, shape)
+    mask_previous = _check_mask(mask_previous, shape, "mask_previous")
+    height, width = shape
+    points = position[mask]
+    w = _clip_row(points, view_proj_previous, 3)
     in_front = w > 0
     safe_w = np.where(in_front, w, 1.0)
     # continuous pixel coordinates, centres at integers, row 0 at the top
-    x = (clip[:, 0] / safe_w + 1) / 2 * width - 0.5
-    y = (1 - clip[:, 1] / safe_w) / 2 * height - 0.5
+    x = (_clip_row(points, view_proj_previous, 0) / safe_w + 1) / 2 * width - 0.5
+    y = (1 - _clip_row(points, view_proj_previous, 1) / safe_w) / 2 * height - 0.5
     x = np.where(np.abs(x - np.rint(x)) < CENTRE_SNAP_PX, np.rint(x), x)
     y = np.where(np.abs(y - np.rint(y)) < CENTRE_SNAP_PX, np.rint(y), y)
     inside = in_front & (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)
@@ -258,74 +284,50 @@ def _reprojected(position, view_proj_previous, depth_previous, mask, mask_previo
     kept &= np.abs(expected * safe_w - 1) <= depth_tolerance
     pixels = np.zeros(mask.shape, bool)
     pixels[mask] = kept
-    return pixels, [c[kept] for c in corners]
+    return WorldPoints(pixels, tuple(c[kept] for c in corners))
 
 
-def _change_from_previous(now: np.ndarray, previous: np.ndarray, corners) -> np.ndarray:
-    """How far each value ``now`` lies outside the range of ``previous`` at the corners around
-    its world point (signed; 0 inside): on a point exactly at a pixel centre, now − previous."""
-    around = np.stack([previous.ravel()[c] for c in corners])
+def _world_change(now, previous, points: WorldPoints) -> np.ndarray:
+    """How far each value of ``now`` at ``points.pixels`` lies outside the range of
+    ``previous`` at the centres around its world point (signed; 0 inside): on a point exactly
+    at a pixel centre p', now - previous(p')."""
+    now, previous = _check(now, previous, None)[:2]
+    if now.shape != points.pixels.shape:
+        raise ValueError(f"frames of shape {now.shape} for world points of "
+                         f"{points.pixels.shape}")
+    now = now[points.pixels]
+    around = np.stack([previous.ravel()[c] for c in points.corners])
     return now - np.clip(now, around.min(axis=0), around.max(axis=0))
 
 
-def _world_pairs(v, v_previous, position, view_proj_previous, depth_previous, mask,
-                 mask_previous, depth_tolerance):
-    v, _, mask = _check(v, v, mask)
-    v_previous, _, mask_previous = _check(v_previous, v_previous, mask_previous)
-    if v.shape != v_previous.shape:
-        raise ValueError(f"frames of different shapes: {v.shape} and {v_previous.shape}")
-    position, view_proj_previous, depth_previous = _check_reprojection(
-        position, view_proj_previous, depth_previous, v.shape)
-    return _reprojected(position, view_proj_previous, depth_previous, mask, mask_previous,
-                        depth_tolerance)
-
-
-def world_flicker(v, v_previous, ref, ref_previous, *, position, view_proj_previous,
-                  depth_previous, mask=None, mask_previous=None,
-                  depth_tolerance: float = DEPTH_TOLERANCE) -> float:
+def world_flicker(v, v_previous, ref, ref_previous, *, points: WorldPoints) -> float:
     """:func:`flicker` at fixed world points: shimmer, the change a technique makes where the
-    surface stays put, apart from the image moving over it.
+    surface stays put, apart from the image moving over it. ``points``: :func:`world_points`
+    of the two frames.
 
-    Each compared pixel p of frame t (``mask``) takes its world point (``position``, frame t's
-    G-buffer) into frame t-1's image (``view_proj_previous``); it counts where it lands inside
-    the image, between pixels compared in t-1 (``mask_previous``), on the surface t-1 saw there
-    (``depth_previous``, t-1's :func:`view_depth`, matches within ``depth_tolerance``: not
-    disoccluded). Its change is how far V_t(p) lies outside the range of V_t-1 at the pixels
-    whose centres surround the point (1 at a centre, 2 on a line of centres, else 4); the
-    truth's likewise; the value is the mean |change − change_ref|. On a point at a pixel centre
-    p' that is |(V_t(p) − V_t-1(p')) − (V_ref,t(p) − V_ref,t-1(p'))|.
+    At each kept pixel p of frame t the change is how far V_t(p) lies outside the range of
+    V_t-1 at the pixels whose centres surround p's world point in t-1 (1 at a centre, 2 on a
+    line of centres, else 4); the truth's likewise; the value is the mean |change -
+    change_ref|. On a point at a pixel centre p' that is |(V_t(p) - V_t-1(p')) - (V_ref,t(p)
+    - V_ref,t-1(p'))|.
 
     Why the range and not one pixel: the point lands between pixel centres (up to half a pixel
     from the nearest), so the nearest pixel is another world point, and a still 0/1 edge
-    between the two reads as a change (the same resampling that pixel flicker measures). A
-    bilinear blend of the surrounding V invents fractions a 0/1 technique never answers and
-    calls every still hard edge flickering. The range calls still V still anywhere (a value
-    between the surrounding ones is consistent with it) and keeps 0/1.
-
-    A pixel whose surface moved (a moving object) is a different world point in t-1: the depth
-    test drops most of them, not one sliding along itself; ``mask`` should leave them out."""
-    ref, ref_previous = np.asarray(ref, np.float64), np.asarray(ref_previous, np.float64)
-    if ref.shape != np.shape(v) or ref_previous.shape != np.shape(v_previous):
-        raise ValueError(f"references of shapes {ref.shape} and {ref_previous.shape} for "
-                         f"frames of {np.shape(v)} and {np.shape(v_previous)}")
-    pixels, corners = _world_pairs(v, v_previous, position, view_proj_previous, depth_previous,
-                                   mask, mask_previous, depth_tolerance)
-    change = _change_from_previous(np.asarray(v, np.float64)[pixels],
-                                   np.asarray(v_previous, np.float64), corners)
-    change_ref = _change_from_previous(ref[pixels], ref_previous, corners)
+    between the two reads as a change: the resampling pixel flicker measures. A bilinear blend
+    of the surrounding V invents fractions a 0/1 technique never answers, and calls every
+    still hard edge flickering. The range calls still V still (a value between the surrounding
+    ones is consistent with it) and keeps 0/1; its cost is that a change within a pixel of an
+    edge hides."""
+    change = _world_change(v, v_previous, points)
+    change_ref = _world_change(ref, ref_previous, points)
     return _mean(np.abs(change - change_ref))
 
 
-def world_changed_pct(v, v_previous, *, position, view_proj_previous, depth_previous,
-                      mask=None, mask_previous=None, depth_tolerance: float = DEPTH_TOLERANCE,
-                      threshold: float = 0.0) -> float:
-    """Percent of the pixels :func:`world_flicker` compares where V changed at the world point
-    by more than ``threshold`` (lies that far outside the range around it in t-1), whatever
-    the truth did: under a still light, the share of the view that shimmers."""
-    pixels, corners = _world_pairs(v, v_previous, position, view_proj_previous, depth_previous,
-                                   mask, mask_previous, depth_tolerance)
-    change = _change_from_previous(np.asarray(v, np.float64)[pixels],
-                                   np.asarray(v_previous, np.float64), corners)
+def world_changed_pct(v, v_previous, *, points: WorldPoints, threshold: float = 0.0) -> float:
+    """Percent of the pixels :func:`world_flicker` compares (``points``) where V changed at
+    the world point by more than ``threshold`` (lies that far outside the range around it in
+    t-1), whatever the truth did: under a still light, the share of the view that shimmers."""
+    change = _world_change(v, v_previous, points)
     return float(100.0 * (np.abs(change) > threshold).mean()) if change.size else float("nan")
 
 

@@ -240,8 +240,8 @@ def test_a_still_shadow_under_a_one_pixel_camera_move_has_no_world_flicker():
     r_prev, r = lit_beyond(0.4, before), lit_beyond(0.4, now)
     assert metrics.flicker(v, v_prev, r, r_prev) == pytest.approx(2 * HEIGHT / (WIDTH * HEIGHT))
     args = world_args(0.0, 0.25)
-    assert metrics.world_flicker(v, v_prev, r, r_prev, **args) == 0.0
-    assert metrics.world_changed_pct(v, v_prev, **args) == 0.0
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == 0.0
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == 0.0
 
 
 def test_world_flicker_by_hand_at_known_world_points():
@@ -259,8 +259,8 @@ def test_world_flicker_by_hand_at_known_world_points():
     mask_previous = np.ones((HEIGHT, WIDTH), bool)
     mask_previous[3, 5] = False  # frame t's (3, 4)
     args = dict(world_args(0.0, 0.25), mask_previous=mask_previous)
-    assert metrics.world_flicker(v, v_prev, r, r_prev, **args) == pytest.approx(3 / 41)
-    assert metrics.world_changed_pct(v, v_prev, **args) == pytest.approx(100 * 4 / 41)
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == pytest.approx(3 / 41)
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 4 / 41)
 
 
 def test_disoccluded_pixels_are_left_out():
@@ -276,8 +276,8 @@ a still truth. Catches no depth test, or one tighter than 1e-4."""
     args["depth_previous"][0, 6] = DEPTH * (1 - 1e-4)  # frame t's (0, 5)
     v_prev[:, 2:4] = 1 - v_prev[:, 2:4]
     v_prev[0, 6] = 1 - v_prev[0, 6]
-    assert metrics.world_changed_pct(v, v_prev, **args) == pytest.approx(100 * 1 / 30)
-    assert metrics.world_flicker(v, v_prev, r, r_prev, **args) == pytest.approx(1 / 30)
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 1 / 30)
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == pytest.approx(1 / 30)
 
 
 def test_a_still_edge_under_a_fraction_of_a_pixel_does_not_flicker():
@@ -292,20 +292,27 @@ def test_a_still_edge_under_a_fraction_of_a_pixel_does_not_flicker():
     before, now = plane_points(0.0), plane_points(0.075)
     v_prev, v = lit_beyond(-0.1, before), lit_beyond(-0.1, now)
     args = world_args(0.0, 0.075)
-    assert metrics.world_changed_pct(v, v_prev, **args) == 0.0
-    assert metrics.world_flicker(v, v_prev, v_prev, v_prev, **args) == 0.0
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == 0.0
+    assert metrics.world_flicker(v, v_prev, v_prev, v_prev, points=metrics.world_points(**args)) == 0.0
     shimmered = lit_beyond(0.275, now)
-    assert metrics.world_changed_pct(shimmered, v_prev, **args) == pytest.approx(100 * 6 / 42)
+    assert metrics.world_changed_pct(shimmered, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 6 / 42)
 
 
 def test_world_flicker_checks_its_shapes():
+    """Position, view-projection, depth and masks of the wrong shape, and frames of another
+    shape than the world points, are errors. Catches a silent broadcast."""
     v = np.zeros((HEIGHT, WIDTH))
     args = world_args(0.0, 0.25)
     with pytest.raises(ValueError, match="position"):
-        metrics.world_flicker(v, v, v, v, **{**args, "position": args["position"][:, :4]})
+        metrics.world_points(**{**args, "position": args["position"][..., :2]})
     with pytest.raises(ValueError, match="view_proj_previous"):
-        metrics.world_flicker(v, v, v, v, **{**args, "view_proj_previous": np.eye(3)})
+        metrics.world_points(**{**args, "view_proj_previous": np.eye(3)})
     with pytest.raises(ValueError, match="depth_previous"):
-        metrics.world_changed_pct(v, v, **{**args, "depth_previous": v[:2]})
+        metrics.world_points(**{**args, "depth_previous": v[:2]})
+    with pytest.raises(ValueError, match="mask"):
+        metrics.world_points(**args, mask_previous=v)
+    points = metrics.world_points(**args)
     with pytest.raises(ValueError, match="shape"):
-        metrics.world_flicker(v, v[:, :2], v, v, **args)
+        metrics.world_flicker(v, v[:, :2], v, v, points=points)
+    with pytest.raises(ValueError, match="world points"):
+        metrics.world_changed_pct(v[:2], v[:2], points=points)
