@@ -6,6 +6,8 @@ shapes checked. ``mask`` selects the pixels compared (covered in both views); ``
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import ndimage
 
@@ -18,12 +20,16 @@ def _check(v: np.ndarray, ref: np.ndarray, mask: np.ndarray | None):
     v, ref = np.asarray(v, dtype=np.float64), np.asarray(ref, dtype=np.float64)
     if v.ndim != 2 or v.shape != ref.shape:
         raise ValueError(f"expected two 2-D arrays of one shape, got {v.shape} and {ref.shape}")
+    return v, ref, _check_mask(mask, v.shape)
+
+
+def _check_mask(mask, shape, name: str = "mask") -> np.ndarray:
     if mask is None:
-        mask = np.ones(v.shape, bool)
+        return np.ones(shape, bool)
     mask = np.asarray(mask)
-    if mask.shape != v.shape or mask.dtype != bool:
-        raise ValueError(f"mask must be bool of shape {v.shape}, got {mask.dtype} {mask.shape}")
-    return v, ref, mask
+    if mask.shape != shape or mask.dtype != bool:
+        raise ValueError(f"{name} must be bool of shape {shape}, got {mask.dtype} {mask.shape}")
+    return mask
 
 
 def _mean(values: np.ndarray) -> float:
@@ -191,6 +197,140 @@ def flicker(v, v_previous, ref, ref_previous, *, mask=None, mask_previous=None) 
         raise ValueError(f"frames of different shapes: {v.shape} and {v_previous.shape}")
     change = (v - v_previous) - (ref - ref_previous)
     return _mean(np.abs(change)[mask & mask_previous])
+
+
+# A reprojected point is on the surface frame t-1 saw there when its 1/depth matches frame
+# t-1's, interpolated bilinearly between the pixels around it, within this fraction. 1/depth
+# is linear in screen space on a plane, so on one flat face the two agree but for float32
+# rounding of the G-buffer (about 1e-6), and across a crease of a tessellated curve by a second-
+# order term (a sphere of 4 subdivisions at 256 pixels: about 2e-4); an occluder in front of
+# what is behind it differs by far more than 0.1% of its distance.
+DEPTH_TOLERANCE = 1e-3
+# a reprojected point within this many pixels of a pixel centre is at that centre: the float32
+# G-buffer positions put an exact one-pixel move 1e-4 pixels off at 256 pixels
+CENTRE_SNAP_PX = 1e-3
+
+
+def view_depth(position, view_proj) -> np.ndarray:
+    """Clip-space w of world points ``position`` (..., 3) under ``view_proj``: for a
+    perspective camera (the harness's), their distance in front of it along its axis. The depth
+    :func:`world_flicker` compares."""
+    return _clip_row(np.asarray(position, dtype=np.float64),
+                     np.asarray(view_proj, dtype=np.float64), 3)
+
+
+def _clip_row(points: np.ndarray, view_proj: np.ndarray, row: int) -> np.ndarray:
+    # by columns, not a matrix product: BLAS threads cost more than the sums on small arrays
+    m = view_proj[row]
+    return points[..., 0] * m[0] + points[..., 1] * m[1] + points[..., 2] * m[2] + m[3]
+
+
+@dataclass(frozen=True)
+class WorldPoints:
+    """The pixels of frame t whose world point frame t-1 saw (:func:`world_points`), and for
+    each the flat indices into t-1's image of the four pixel centres around it (repeated where
+    the point is on a row or column of centres)."""
+
+    pixels: np.ndarray  # (H, W) bool
+    corners: tuple  # four int arrays, one index per pixel of ``pixels``
+
+
+def world_points(position, view_proj_previous, depth_previous, *, mask=None,
+                 mask_previous=None, depth_tolerance: float = DEPTH_TOLERANCE) -> WorldPoints:
+    """Frame t's compared pixels (``mask``) taken to frame t-1, for :func:`world_flicker`: each
+    pixel's world point (``position``, frame t's G-buffer, (H, W, 3)) projected with t-1's
+    ``view_proj_previous``. A pixel is kept where its point lands in front of the camera and
+    inside the image, the 1, 2 or 4 pixels whose centres surround it were compared in t-1
+    (``mask_previous``), and its depth matches t-1's there (``depth_previous``, t-1's
+    :func:`view_depth`; 1/depth interpolated between them, within ``depth_tolerance``: the
+    same surface, not one t-1 saw in front of it). One computation serves every run scored on
+    the same two frames.
+
+    A pixel whose surface moved (a moving object) is another world point in t-1: the depth test
+    drops most of them, not one sliding along itself; ``mask`` should leave those out."""
+    position = np.asarray(position, dtype=np.float64)
+    view_proj_previous = np.asarray(view_proj_previous, dtype=np.float64)
+    depth_previous = np.asarray(depth_previous, dtype=np.float64)
+    if position.ndim != 3 or position.shape[2] != 3:
+        raise ValueError(f"position must be of shape (H, W, 3), got {position.shape}")
+    shape = position.shape[:2]
+    if view_proj_previous.shape != (4, 4):
+        raise ValueError(f"view_proj_previous must be 4x4, got {view_proj_previous.shape}")
+    if depth_previous.shape != shape:
+        raise ValueError(f"depth_previous must be of shape {shape}, got {depth_previous.shape}")
+    mask = _check_mask(mask, shape)
+    mask_previous = _check_mask(mask_previous, shape, "mask_previous")
+    height, width = shape
+    points = position[mask]
+    w = _clip_row(points, view_proj_previous, 3)
+    in_front = w > 0
+    safe_w = np.where(in_front, w, 1.0)
+    # continuous pixel coordinates, centres at integers, row 0 at the top
+    x = (_clip_row(points, view_proj_previous, 0) / safe_w + 1) / 2 * width - 0.5
+    y = (1 - _clip_row(points, view_proj_previous, 1) / safe_w) / 2 * height - 0.5
+    x = np.where(np.abs(x - np.rint(x)) < CENTRE_SNAP_PX, np.rint(x), x)
+    y = np.where(np.abs(y - np.rint(y)) < CENTRE_SNAP_PX, np.rint(y), y)
+    inside = in_front & (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)
+    x, y = np.where(inside, x, 0.0), np.where(inside, y, 0.0)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.ceil(x).astype(np.int64), np.ceil(y).astype(np.int64)
+    corners = [y0 * width + x0, y0 * width + x1, y1 * width + x0, y1 * width + x1]
+    fx, fy = x - x0, y - y0
+    weights = [(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy]
+    seen = mask_previous.ravel()
+    inverse_depth = 1.0 / np.where(seen, np.maximum(depth_previous.ravel(), 1e-300), 1.0)
+    kept = inside.copy()
+    for corner in corners:
+        kept &= seen[corner]
+    expected = sum(wt * inverse_depth[c] for wt, c in zip(weights, corners))
+    kept &= np.abs(expected * safe_w - 1) <= depth_tolerance
+    pixels = np.zeros(mask.shape, bool)
+    pixels[mask] = kept
+    return WorldPoints(pixels, tuple(c[kept] for c in corners))
+
+
+def _world_change(now, previous, points: WorldPoints) -> np.ndarray:
+    """How far each value of ``now`` at ``points.pixels`` lies outside the range of
+    ``previous`` at the centres around its world point (signed; 0 inside): on a point exactly
+    at a pixel centre p', now - previous(p')."""
+    now, previous = _check(now, previous, None)[:2]
+    if now.shape != points.pixels.shape:
+        raise ValueError(f"frames of shape {now.shape} for world points of "
+                         f"{points.pixels.shape}")
+    now = now[points.pixels]
+    around = np.stack([previous.ravel()[c] for c in points.corners])
+    return now - np.clip(now, around.min(axis=0), around.max(axis=0))
+
+
+def world_flicker(v, v_previous, ref, ref_previous, *, points: WorldPoints) -> float:
+    """:func:`flicker` at fixed world points: shimmer, the change a technique makes where the
+    surface stays put, apart from the image moving over it. ``points``: :func:`world_points`
+    of the two frames.
+
+    At each kept pixel p of frame t the change is how far V_t(p) lies outside the range of
+    V_t-1 at the pixels whose centres surround p's world point in t-1 (1 at a centre, 2 on a
+    line of centres, else 4); the truth's likewise; the value is the mean |change -
+    change_ref|. On a point at a pixel centre p' that is |(V_t(p) - V_t-1(p')) - (V_ref,t(p)
+    - V_ref,t-1(p'))|.
+
+    Why the range and not one pixel: the point lands between pixel centres (up to half a pixel
+    from the nearest), so the nearest pixel is another world point, and a still 0/1 edge
+    between the two reads as a change: the resampling pixel flicker measures. A bilinear blend
+    of the surrounding V invents fractions a 0/1 technique never answers, and calls every
+    still hard edge flickering. The range calls still V still (a value between the surrounding
+    ones is consistent with it) and keeps 0/1; its cost is that a change within a pixel of an
+    edge hides."""
+    change = _world_change(v, v_previous, points)
+    change_ref = _world_change(ref, ref_previous, points)
+    return _mean(np.abs(change - change_ref))
+
+
+def world_changed_pct(v, v_previous, *, points: WorldPoints, threshold: float = 0.0) -> float:
+    """Percent of the pixels :func:`world_flicker` compares (``points``) where V changed at
+    the world point by more than ``threshold`` (lies that far outside the range around it in
+    t-1), whatever the truth did: under a still light, the share of the view that shimmers."""
+    change = _world_change(v, v_previous, points)
+    return float(100.0 * (np.abs(change) > threshold).mean()) if change.size else float("nan")
 
 
 POP_FACTOR = 5.0  # a frame flickering this many times the sequence's median pops

@@ -34,6 +34,9 @@ COLUMNS: dict[str, type] = {
     "mae": float, "rmse": float, "wrong_pct": float, "edge_mae": float, "ssim": float,
     "psnr": float, "flip": float, "levels": float,
     "acne_pct": float, "leak_pct": float, "edge_floor": float, "edge_ratio": float,
+    # moving scenes: flicker at fixed world points (metrics.world_flicker)
+    "world_flicker": float, "world_flicker_max": float, "world_changed_pct": float,
+    "world_changed_pct_max": float,
     "nonfinite": float, "v_min": float, "v_max": float,
     "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
     "code_version": str, "ref_samples": int, "ref_seconds": float,

@@ -184,3 +184,135 @@ def test_receives_light_only_inside_a_spot_cone():
     normal = np.broadcast_to([0.0, 0, 1], position.shape)
     got = metrics.receives_light(normal, position, light, camera_position=[0, -5, 5])
     assert got.tolist() == [[True, True, False]]
+
+
+# --- world flicker: a hand-built camera over the plane z = 0 ----------------------------------
+# view_proj of a camera at height DEPTH above x = shift looking down -z at the plane z = 0:
+# ndc x = x - shift, ndc y = y (a 2 x 2 patch of the plane fills the image), clip w = DEPTH.
+# The plane is at one depth, so moving the camera sideways moves the image by exactly as much
+# everywhere: one pixel is 2 / WIDTH in x.
+WIDTH, HEIGHT, DEPTH = 8, 6, 5.0
+
+
+def plane_camera(shift):
+    view_proj = np.zeros((4, 4))
+    view_proj[0] = [DEPTH, 0, 0, -DEPTH * shift]
+    view_proj[1] = [0, DEPTH, 0, 0]
+    view_proj[3] = [0, 0, -1, DEPTH]
+    return view_proj
+
+
+def plane_points(shift):
+    """World points of the pixel centres (row 0 at the top) of the camera at ``shift``."""
+    x = shift + (np.arange(WIDTH) + 0.5) / WIDTH * 2 - 1
+    y = 1 - (np.arange(HEIGHT) + 0.5) / HEIGHT * 2
+    xx, yy = np.meshgrid(x, y)
+    return np.stack([xx, yy, np.zeros_like(xx)], axis=-1)
+
+
+def world_args(shift_previous, shift):
+    return dict(position=plane_points(shift), view_proj_previous=plane_camera(shift_previous),
+                depth_previous=np.full((HEIGHT, WIDTH), DEPTH))
+
+
+def lit_beyond(edge, points):
+    """A shadow edge fixed on the plane: lit where x > ``edge``."""
+    return (points[..., 0] > edge).astype(float)
+
+
+def test_view_depth_is_the_distance_in_front_of_the_camera():
+    """The hand-built camera's clip w is DEPTH on the plane and DEPTH - z above it. Catches
+    the wrong row of the matrix (clip z)."""
+    points = plane_points(0.0)
+    points[0, 0, 2] = 1.5
+    depth = metrics.view_depth(points, plane_camera(0.0))
+    assert depth[0, 0] == DEPTH - 1.5 and (depth.ravel()[1:] == DEPTH).all()
+
+
+def test_a_still_shadow_under_a_one_pixel_camera_move_has_no_world_flicker():
+    """The camera moves one pixel sideways over a shadow edge fixed on the plane, the
+    technique's edge a pixel and a bit off the truth's: at each pixel the edge jumps a
+    pixel (pixel flicker 2 jumps in 48 pixels), but at each world point nothing changes
+    (world flicker and changed % exactly 0). Catches a reprojection off by a pixel or
+    flipped in x (it would compare other world points across the edges)."""
+    before, now = plane_points(0.0), plane_points(0.25)
+    v_prev, v = lit_beyond(0.05, before), lit_beyond(0.05, now)
+    r_prev, r = lit_beyond(0.4, before), lit_beyond(0.4, now)
+    assert metrics.flicker(v, v_prev, r, r_prev) == pytest.approx(2 * HEIGHT / (WIDTH * HEIGHT))
+    args = world_args(0.0, 0.25)
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == 0.0
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == 0.0
+
+
+def test_world_flicker_by_hand_at_known_world_points():
+    """A one-pixel move (frame t's column c is t-1's column c + 1; its last column leaves the
+    view): 42 pixels compared, less one whose t-1 pixel is not compared (41). V changes at
+    3 world points against a still truth (|1| each) and at 1 where the truth changes
+    too (0): world flicker 3 / 41, changed % 4 / 41. Catches a mean over all pixels of t (48)
+    or the truth's change left out (4 / 41)."""
+    before, now = plane_points(0.0), plane_points(0.25)
+    v_prev, r_prev = lit_beyond(0.05, before), lit_beyond(0.05, before)
+    v, r = lit_beyond(0.05, now), lit_beyond(0.05, now)
+    for row, col in [(0, 0), (2, 3), (5, 6), (4, 1)]:
+        v[row, col] = 1 - v[row, col]
+    r[4, 1] = v[4, 1]
+    mask_previous = np.ones((HEIGHT, WIDTH), bool)
+    mask_previous[3, 5] = False  # frame t's (3, 4)
+    args = dict(world_args(0.0, 0.25), mask_previous=mask_previous)
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == pytest.approx(3 / 41)
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 4 / 41)
+
+
+def test_disoccluded_pixels_are_left_out():
+    """Where t-1 saw a surface 1% nearer (an occluder since moved away) the world point was
+    hidden: its change is not counted, though V there differs wholly; 0.01% nearer is the same
+    surface (float rounding) and counts: 1 change in 30 pixels (42 less 12 hidden), against
+a still truth. Catches no depth test, or one tighter than 1e-4."""
+    before, now = plane_points(0.0), plane_points(0.25)
+    v_prev, v = lit_beyond(0.05, before), lit_beyond(0.05, now)
+    r_prev, r = v_prev.copy(), v.copy()
+    args = world_args(0.0, 0.25)
+    args["depth_previous"][:, 2:4] = DEPTH * 0.99  # frame t's columns 1 and 2
+    args["depth_previous"][0, 6] = DEPTH * (1 - 1e-4)  # frame t's (0, 5)
+    v_prev[:, 2:4] = 1 - v_prev[:, 2:4]
+    v_prev[0, 6] = 1 - v_prev[0, 6]
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 1 / 30)
+    assert metrics.world_flicker(v, v_prev, r, r_prev, points=metrics.world_points(**args)) == pytest.approx(1 / 30)
+
+
+def test_a_still_edge_under_a_fraction_of_a_pixel_does_not_flicker():
+    """A move of 0.3 pixel: each world point lands 0.3 pixel past a centre of t-1, the nearest
+    centre another point of the plane, and on column 3 the still edge (x = -0.1) lies between
+    the two (x -0.05 at t, -0.125 in t-1). V lies within the range around each point: world
+    flicker 0. An edge that moved 1.5 pixels on the plane (to x = 0.275) darkens columns 3
+    and 4; column 4 (x 0.2, between t-1's lit 0.125 and 0.375) counts, column 3 does not: it
+    lies between a dark and a lit centre, where no change can be told (the range's cost: a
+    change within a pixel of an edge hides). 6 of 42. Catches the nearest pixel in place of
+    the range (column 3 would count in the still case: 6 of 42, not 0)."""
+    before, now = plane_points(0.0), plane_points(0.075)
+    v_prev, v = lit_beyond(-0.1, before), lit_beyond(-0.1, now)
+    args = world_args(0.0, 0.075)
+    assert metrics.world_changed_pct(v, v_prev, points=metrics.world_points(**args)) == 0.0
+    assert metrics.world_flicker(v, v_prev, v_prev, v_prev, points=metrics.world_points(**args)) == 0.0
+    shimmered = lit_beyond(0.275, now)
+    assert metrics.world_changed_pct(shimmered, v_prev, points=metrics.world_points(**args)) == pytest.approx(100 * 6 / 42)
+
+
+def test_world_flicker_checks_its_shapes():
+    """Position, view-projection, depth and masks of the wrong shape, and frames of another
+    shape than the world points, are errors. Catches a silent broadcast."""
+    v = np.zeros((HEIGHT, WIDTH))
+    args = world_args(0.0, 0.25)
+    with pytest.raises(ValueError, match="position"):
+        metrics.world_points(**{**args, "position": args["position"][..., :2]})
+    with pytest.raises(ValueError, match="view_proj_previous"):
+        metrics.world_points(**{**args, "view_proj_previous": np.eye(3)})
+    with pytest.raises(ValueError, match="depth_previous"):
+        metrics.world_points(**{**args, "depth_previous": v[:2]})
+    with pytest.raises(ValueError, match="mask"):
+        metrics.world_points(**args, mask_previous=v)
+    points = metrics.world_points(**args)
+    with pytest.raises(ValueError, match="shape"):
+        metrics.world_flicker(v, v[:, :2], v, v, points=points)
+    with pytest.raises(ValueError, match="world points"):
+        metrics.world_changed_pct(v[:2], v[:2], points=points)

@@ -1,5 +1,5 @@
 """A moving scene's part of its section (scenes with ``motion``, runs with per-frame series):
-error and flicker against frame, one line per run, and each run's worst frame beside that
+error, flicker and world flicker against frame, one line per run, and each run's worst frame beside that
 frame's reference, with its error and the frames around it. The viewer above shows frame 0,
 the frame the scene's stored reference is of."""
 
@@ -17,6 +17,7 @@ SERIES = {
     "mae": "mae: mean |V − V_ref| per frame",
     "edge_mae": "edge_mae per frame",
     "flicker": "flicker: mean |ΔV − ΔV_ref| from the frame before",
+    "world_flicker": "world_flicker: flicker at the same world points (shimmer)",
 }
 STRIP_PX = 96  # the longer side of a strip frame as shown
 MARKERS_UP_TO = 12  # frames; longer series are drawn as lines alone
@@ -83,6 +84,8 @@ def _worst_frame(row, name: str, z) -> dict:
             "flicker": plots.number(row.get("flicker")),
             "flicker_max": plots.number(row.get("flicker_max")),
             "pop_frames": plots.number(row.get("pop_frames")),
+            "world_flicker": plots.number(row.get("world_flicker")),
+            "world_changed_pct": plots.number(row.get("world_changed_pct")),
             "mae": plots.number(row.get("mae")), "mae_max": plots.number(row.get("mae_max")),
             "ref": im.data_uri(im.shrink_mean(im.visibility(ref, covered)), im.VISIBILITY),
             "v": im.data_uri(im.shrink_mean(im.visibility(v, covered)), im.VISIBILITY),

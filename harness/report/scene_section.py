@@ -22,6 +22,7 @@ RUN_COLUMNS = {
     "mem_bytes": ("memory B", 3), "fetches_per_px": ("fetches/px", 3),
     "overdraw": ("overdraw", 3), "frags_shadow": ("shadow frags", 3),
     "flicker": ("flicker", 3), "flicker_max": ("flicker max", 3), "pop_frames": ("pops", 3),
+    "world_flicker": ("world flicker", 3), "world_changed_pct": ("world changed %", 3),
     "mae_max": ("mae worst frame", 3),
     "vertex_invocations": ("vertex inv.", 3), "fragment_invocations": ("fragment inv.", 3),
     "primitives": ("primitives", 3),

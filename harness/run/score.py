@@ -189,12 +189,15 @@ NO_WORST = ("levels", "edge_floor")
 @dataclass
 class _Sequence:
     """What a run on a moving scene keeps across frames: per-frame values, its previous V
-    (for flicker), frame 0's arrays, the worst frame so far and the strip around it. Memory
-    stays a few images per run however long the sequence."""
+    (for flicker) with that frame's depth and camera (for world flicker), frame 0's arrays,
+    the worst frame so far and the strip around it. Memory stays a few images per run however
+    long the sequence."""
 
     series: dict[str, list] = field(default_factory=dict)
     extras: dict[str, list] = field(default_factory=dict)  # the technique's columns per frame
     previous: np.ndarray | None = None
+    previous_depth: np.ndarray | None = None  # metrics.view_depth of the previous frame
+    previous_view_proj: np.ndarray | None = None
     first: dict | None = None  # frame 0's arrays
     # (t, V, V_ref, coverage) of the last STRIP_RADIUS frames
     recent: list = field(default_factory=list)
@@ -222,6 +225,7 @@ def _observe(timed, frame, truth: _Truth, previous: _Truth | None) -> None:
                metrics.flicker(v, sequence.previous, ref_v, previous.reference.visibility,
                                mask=truth.mask, mask_previous=previous.mask))
     sequence.add("flicker", flicker)
+    _observe_world_flicker(sequence, v, frame, truth, previous)
     for name, value in output.extra.items():
         sequence.extras.setdefault(name, []).append(value)
     sequence.nonfinite += output.nonfinite + metrics.nonfinite(output.visibility)
@@ -246,6 +250,27 @@ def _observe(timed, frame, truth: _Truth, previous: _Truth | None) -> None:
         sequence.strip_wanted -= 1
     sequence.recent = (sequence.recent + [(t, v, ref_v, covered)])[-STRIP_RADIUS:]
     sequence.previous = v
+
+
+def _observe_world_flicker(sequence: _Sequence, v: np.ndarray, frame, truth: _Truth,
+                           previous: _Truth | None) -> None:
+    """Frame ``truth.index``'s world flicker and changed % (NaN at frame 0) into the sequence's
+    series, then this frame's depth and camera kept for the next. A moving object's pixels are
+    not left out (the frame does not say which moved): :func:`harness.metrics.world_points`'
+    depth test drops those that left their place in depth."""
+    a = frame.arrays
+    world_flicker = changed = math.nan
+    if previous is not None:
+        points = metrics.world_points(a.position, sequence.previous_view_proj,
+                                      sequence.previous_depth, mask=truth.mask,
+                                      mask_previous=previous.mask)
+        world_flicker = metrics.world_flicker(v, sequence.previous, truth.reference.visibility,
+                                              previous.reference.visibility, points=points)
+        changed = metrics.world_changed_pct(v, sequence.previous, points=points)
+    sequence.add("world_flicker", world_flicker)
+    sequence.add("world_changed_pct", changed)
+    sequence.previous_depth = metrics.view_depth(a.position, frame.camera.view_proj)
+    sequence.previous_view_proj = frame.camera.view_proj
 
 
 def _sequence_score(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
