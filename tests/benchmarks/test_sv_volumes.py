@@ -54,6 +54,8 @@ def _run(benchmark, name: str, work) -> None:
         GL.glFinish()
 
     benchmark.pedantic(timed, rounds=ROUNDS, warmup_rounds=1)
+    if benchmark.disabled:  # make test runs each benchmark once, untimed
+        return
     medians[name] = benchmark.stats.stats.median
     benchmark.extra_info["per_scene_pass"] = round(medians[name] / medians["scene"], 3)
 
