@@ -363,7 +363,7 @@ class ShadowVolumes(Technique):
                             warnings=self.warnings)
 
     def release(self) -> None:
-        if self.volumes:
+        if isinstance(self.volumes, GpuVolumes):  # the CPU-built volumes have no geometry shader
             # Mesa 22.3 (llvmpipe) keeps a program that draws after a geometry-shader program
             # alive past its deletion, until a geometry-shader program is bound again
             self.volumes.polygon_program.use()
