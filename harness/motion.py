@@ -113,9 +113,14 @@ def object_poses(scene: cfg.Scene, parts, centre, t: int) -> np.ndarray | None:
     return None if np.array_equal(poses, np.broadcast_to(np.eye(4), poses.shape)) else poses
 
 
+def moved(vertices: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """``vertices`` (N, 3) moved by the rigid ``pose`` in float64, stored float32: where a
+    moving part's vertices are (:func:`posed`), for whatever follows that part."""
+    return (vertices.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]).astype(np.float32)
+
+
 def posed(parts, poses: np.ndarray) -> list:
-    """``parts`` with their vertices moved by ``poses`` (in float64, stored float32); a part
-    whose pose is the identity keeps its arrays."""
-    return [part if np.array_equal(pose, np.eye(4)) else replace(part, vertices=(
-        part.vertices.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]).astype(np.float32))
-        for part, pose in zip(parts, poses)]
+    """``parts`` with their vertices :func:`moved` by ``poses``; a part whose pose is the
+    identity keeps its arrays."""
+    return [part if np.array_equal(pose, np.eye(4)) else replace(part, vertices=moved(
+        part.vertices, pose)) for part, pose in zip(parts, poses)]

@@ -80,14 +80,17 @@ class ShadowVolumes(Technique):
     The volumes are extruded on the GPU every frame, inside the timed ``volumes`` pass, from
     geometry uploaded in ``prepare`` (``sv_gpu``: each closed mesh's edges as degenerate quads
     with both faces' planes, McGuire et al. 2003; per-triangle volumes by a geometry shader),
-    so a still scene and a moving light pay the same passes. The near-plane clip polygons are
-    computed on the CPU in that pass, every frame; nearclip in the alpha and screen buffers
+    so a still scene and a moving light pay the same passes. Moving objects too: each part is
+    drawn with its pose (``Frame.part_poses``) as the model transform and the light moved into
+    its space, set in that pass every frame. The near-plane clip polygons are computed on the
+    CPU in that pass, every frame, from the meshes moved by those poses; nearclip in the alpha
+    and screen buffers
     builds all its volumes there on the CPU (``sv_cpu``), since the GPU volumes cannot put a
     volume's clip polygons between its increments and its decrements. The normalisation
     rectangles and the visibility pass shade covered pixels only.
 
-    Volume fragments are counted untimed, with the depth test off, whenever the light or the
-    camera moved (once on a still scene): they are the row's
+    Volume fragments are counted untimed, with the depth test off, whenever the light, the
+    camera or an object moved (once on a still scene): they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
 
     ===============  =====================================================  ==========  =====
@@ -133,7 +136,8 @@ class ShadowVolumes(Technique):
         nested = p.buffer == "stencil" or p.normalize == "max"
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
         self.volumes, self.near_clip = self._volume_geometry(frame)
-        self.volume_light = self.view_proj = None  # what the diagnostics were last counted for
+        # what the diagnostics were last counted for
+        self.volume_light = self.view_proj = self.poses = None
         divisor = MASK_DIVISOR[p.mask_res]
         self.shares_scene_depth = divisor == 1
         self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
@@ -162,18 +166,20 @@ class ShadowVolumes(Technique):
         return volumes, near_clip
 
     def update(self, frame: Frame) -> None:
-        """Nothing an engine computes: all that depends on the light and the camera is drawn
-        in the volume pass, every frame. Only diagnostics (the fill count, volume counts,
-        warnings; untimed) are counted again when the light or the camera moved."""
+        """Nothing an engine computes: all that depends on the light, the camera and the
+        objects' poses is drawn in the volume pass, every frame. Only diagnostics (the fill
+        count, volume counts, warnings; untimed) are counted again when any of them moved."""
         light = frame.scene.light
         light_key = tuple(b"" if v is None else v.tobytes()
                           for v in (light.direction, light.position))
         view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
-        if light_key == self.volume_light and np.array_equal(view_proj, self.view_proj):
+        poses = frame.part_poses
+        if (light_key == self.volume_light and np.array_equal(view_proj, self.view_proj)
+                and np.array_equal(poses, self.poses)):
             return
-        self.volume_light, self.view_proj = light_key, view_proj
-        self.fill = self._count_fill(light)
-        counts, self.warnings = self.volumes.diagnostics(light)
+        self.volume_light, self.view_proj, self.poses = light_key, view_proj, poses
+        self.fill = self._count_fill(light, poses)
+        counts, self.warnings = self.volumes.diagnostics(light, poses)
         redraw = self.params.buffer == "screen" and self.shares_scene_depth
         self.fill.update(counts, scene_passes=1 + (not self.shares_scene_depth) + redraw)
         self.fill.setdefault("near_clip_triangles",
@@ -181,7 +187,7 @@ class ShadowVolumes(Technique):
 
     # ---- untimed fill-rate counts -------------------------------------------------------
 
-    def _count_fill(self, light) -> dict:
+    def _count_fill(self, light, poses: np.ndarray) -> dict:
         self.mask.bind()
         GL.glColorMask(False, False, False, False)
         GL.glDisable(GL.GL_STENCIL_TEST)
@@ -189,18 +195,18 @@ class ShadowVolumes(Technique):
         GL.glDisable(GL.GL_CULL_FACE)
         GL.glDisable(GL.GL_DEPTH_TEST)
         self._zfail_depth(True)
-        volume_frags = count_fragments(lambda: self._draw_volumes(light))
+        volume_frags = count_fragments(lambda: self._draw_volumes(light, poses))
         self._zfail_depth(False)
         GL.glColorMask(True, True, True, True)
         return {"volume_frags": volume_frags,
                 "mask_width": self.mask.width, "mask_height": self.mask.height}
 
-    def _draw_volumes(self, light, **fragment_uniforms) -> None:
-        self.volumes.draw(light, self.view_proj, front_increments=self.front_increments,
+    def _draw_volumes(self, light, poses: np.ndarray, **fragment_uniforms) -> None:
+        self.volumes.draw(light, self.view_proj, poses, front_increments=self.front_increments,
                           **fragment_uniforms)
         if self.near_clip:
-            self.near_clip.draw(light, self.view_proj, front_increments=self.front_increments,
-                                **fragment_uniforms)
+            self.near_clip.draw(light, self.view_proj, poses,
+                                front_increments=self.front_increments, **fragment_uniforms)
 
     # ---- passes ---------------------------------------------------------------------------
 
@@ -274,7 +280,7 @@ class ShadowVolumes(Technique):
             double, halve = (1.0,) * 4, (0.25,) * 4
             increment, decrement = (halve, double) if p.normalize == "max" else (double, halve)
             colours = dict(increment_colour=increment, decrement_colour=decrement)
-        self._draw_volumes(frame.scene.light, **colours)
+        self._draw_volumes(frame.scene.light, frame.part_poses, **colours)
         self._zfail_depth(False)
 
     def _rectangle(self, frame: Frame, colour: float) -> None:

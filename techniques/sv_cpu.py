@@ -3,8 +3,9 @@ technique, not a technique).
 
 :class:`NearClipPolygons`: the near-plane clip polygons (Roettger et al. section 3.2), which
 stay on the CPU in double precision (float32 world coordinates far from the origin lose a
-polygon a near distance from the eye); they depend on the light and the camera, so they are
-computed inside the volume pass, every frame.
+polygon a near distance from the eye); they depend on the light, the camera and where moving
+parts are, so they are computed inside the volume pass, every frame, from the meshes moved by
+the frame's part poses.
 
 :class:`CpuVolumes`: all volumes built in NumPy (``sv_volumes.build``) and uploaded inside
 the volume pass, every frame. Two uses only: the test oracle that GPU-extruded volumes are
@@ -48,8 +49,10 @@ class NearClipPolygons:
         self.program = _program()
         self.triangles = 0
 
-    def draw(self, light: Light, view_proj: np.ndarray, **fragment_uniforms) -> None:
-        casters, owners = sv_volumes.light_casters(self.meshes, self.single, light)
+    def draw(self, light: Light, view_proj: np.ndarray, poses: np.ndarray,
+             **fragment_uniforms) -> None:
+        casters, owners = sv_volumes.light_casters(sv_volumes.placed(self.meshes, poses),
+                                                   self.single, light)
         polygons, _ = sv_volumes.near_clip_polygons(casters, owners, light, view_proj)
         self.triangles = len(polygons)
         self.vertices.update(_near_rows(polygons).reshape(-1, 5))
@@ -72,12 +75,13 @@ class CpuVolumes:
         self.volume_set = None
         self.near_clip_triangles = 0
 
-    def draw(self, light: Light, view_proj: np.ndarray, **fragment_uniforms) -> None:
+    def draw(self, light: Light, view_proj: np.ndarray, poses: np.ndarray,
+             **fragment_uniforms) -> None:
         p = self.params
         self.volume_set = sv_volumes.build(
             self.parts, light, caps=p.method == "zfail",
             nested_counts=p.buffer == "stencil" or p.normalize == "max", grouping=p.volumes,
-            meshes=self.meshes)
+            meshes=sv_volumes.placed(self.meshes, poses))
         vertices, self.near_clip_triangles = self._vertices(light, view_proj)
         self.vertices.update(vertices)
         self.program.use().set(view_proj=view_proj, **fragment_uniforms)
@@ -103,8 +107,8 @@ class CpuVolumes:
             rows = rows[sv_volumes.draw_order(owner, increments)]
         return rows.reshape(-1, 5), len(near)
 
-    def diagnostics(self, light: Light) -> tuple[dict, list[str]]:
-        """The last drawn volumes' counts and warnings."""
+    def diagnostics(self, light: Light, poses: np.ndarray) -> tuple[dict, list[str]]:
+        """The last drawn volumes' counts and warnings (drawn for ``light`` and ``poses``)."""
         volumes = self.volume_set
         triangles = len(volumes.triangles)
         return ({"silhouette_edges": volumes.silhouette_edges,

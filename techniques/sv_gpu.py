@@ -14,7 +14,10 @@ directional light, 6 for a positional one (spot or point); 3 per face for the ca
 per-triangle volumes.
 
 The frame's light reaches the shaders as a uniform, so everything that depends on it runs on
-the GPU inside the volume pass. :meth:`GpuVolumes.diagnostics` recounts in NumPy what that pass built, for
+the GPU inside the volume pass. So do moving objects: each part is drawn with its pose
+(``Frame.part_poses``) as the ``model`` transform and the light brought into its model space,
+parts that share a pose in one draw. :meth:`GpuVolumes.diagnostics` recounts in NumPy what
+that pass built, for
 the results' columns (silhouette edges, volumes, triangles); it is untimed, as a renderer
 would not compute it.
 """
@@ -39,7 +42,6 @@ EDGE_LAYOUT = (3, 3, 4, 4, 1)
 # position, plane of its face
 FACE_LAYOUT = (3, 4)
 HERE = Path(__file__).parent
-IDENTITY = np.eye(4)
 
 
 def face_planes(mesh: CleanMesh) -> np.ndarray:
@@ -121,6 +123,10 @@ class GpuVolumes:
         self.nested_counts = nested_counts
         closed = [m for m, s in zip(meshes, single) if s and len(m.faces)]
         open_ = [m for m, s in zip(meshes, single) if not s and len(m.faces)]
+        # the scene part each drawn closed and open part is, whose pose places it
+        self.closed_parts, self.open_parts = (
+            [i for i, (m, s) in enumerate(zip(meshes, single)) if s == one and len(m.faces)]
+            for one in (True, False))
         self.edge_meshes = [edge_faces(m) for m in closed]
         self.edges = VertexArray(_stack([edge_quads(m) for m in closed], 15), EDGE_LAYOUT)
         self.faces = VertexArray(_stack([face_corners(m) for m in closed], 7), FACE_LAYOUT)
@@ -128,52 +134,73 @@ class GpuVolumes:
         self.edge_ranges = _ranges([6 * len(e[0]) for e in self.edge_meshes])
         self.face_ranges = _ranges([3 * len(m.faces) for m in closed])
         self.polygon_ranges = _ranges([3 * len(m.faces) for m in open_])
-        # draw order: part by part, consecutive per-triangle parts in one draw
-        self.order: list[tuple[str, int, int]] = []
-        closed_index = open_index = 0
-        for mesh, one in zip(meshes, single):
-            if not len(mesh.faces):
-                continue
-            if one:
-                self.order.append(("silhouette", closed_index, closed_index))
-                closed_index += 1
-            elif self.order and self.order[-1][0] == "polygons":
-                self.order[-1] = ("polygons", self.order[-1][1], open_index)
-                open_index += 1
-            else:
-                self.order.append(("polygons", open_index, open_index))
-                open_index += 1
         self.edge_program = _program("sv_edge.vert.glsl")
         self.cap_program = _program("sv_cap.vert.glsl")
         self.polygon_program = _program("sv_polygon.vert.glsl", "sv_polygon.geom.glsl",
                                         EDGE_ON=repr(sv_volumes.DEGENERATE))
         self.programs = (self.edge_program, self.cap_program, self.polygon_program)
 
-    def draw(self, light: Light, view_proj: np.ndarray, **fragment_uniforms) -> None:
-        """All volumes for ``light``; ``fragment_uniforms`` go to sv_volume.frag.glsl."""
+    def draw(self, light: Light, view_proj: np.ndarray, poses: np.ndarray,
+             **fragment_uniforms) -> None:
+        """All volumes for ``light``, each part placed by its pose in ``poses`` (P, 4, 4);
+        ``fragment_uniforms`` go to sv_volume.frag.glsl."""
         for program in self.programs:
-            program.use().set(light=light_vector(light), model=IDENTITY, view_proj=view_proj,
-                              caps=self.caps, increments_first=self.increments_first,
-                              **fragment_uniforms)
+            program.use().set(view_proj=view_proj, caps=self.caps,
+                              increments_first=self.increments_first, **fragment_uniforms)
         positional = light.positional
-        if not self.increments_first:
-            self._edges(range(len(self.edge_ranges)), positional)
-            self._faces(self.cap_program, self.faces, self.face_ranges, self.caps)
-            self._faces(self.polygon_program, self.polygons, self.polygon_ranges, True)
-            return
-        front_increments = fragment_uniforms["front_increments"]
-        for kind, first, last in self.order:
-            if kind == "polygons":
-                self._faces(self.polygon_program, self.polygons,
-                            self.polygon_ranges[first:last + 1], True)
+        for pose, closed, open_ in self._batches(poses):
+            self._place(light, pose)
+            if self.increments_first and closed:
+                self._silhouette_increments_first(closed[0], positional,
+                                                  fragment_uniforms["front_increments"])
                 continue
-            GL.glEnable(GL.GL_CULL_FACE)
-            for culled_front in (not front_increments, front_increments):  # increments first
-                GL.glCullFace(GL.GL_FRONT if culled_front else GL.GL_BACK)
-                self._edges([first], positional)
-                self._faces(self.cap_program, self.faces, self.face_ranges[first:first + 1],
-                            self.caps)
-            GL.glDisable(GL.GL_CULL_FACE)
+            self._edges(closed, positional)
+            self._faces(self.cap_program, self.faces, [self.face_ranges[i] for i in closed],
+                        self.caps)
+            self._faces(self.polygon_program, self.polygons,
+                        [self.polygon_ranges[i] for i in open_], True)
+
+    def _batches(self, poses: np.ndarray) -> list[tuple[np.ndarray, list[int], list[int]]]:
+        """What one model transform draws, in draw order: (pose, closed parts, open parts),
+        by index into the edge and polygon ranges."""
+        drawn = sorted([(part, True, i) for i, part in enumerate(self.closed_parts)]
+                       + [(part, False, i) for i, part in enumerate(self.open_parts)])
+        batches: list[tuple[np.ndarray, list[int], list[int]]] = []
+        for part, closed, index in drawn:
+            batch = self._batch_joined(batches, poses[part], closed)
+            if batch is None:
+                batch = (poses[part], [], [])
+                batches.append(batch)
+            batch[1 if closed else 2].append(index)
+        return batches
+
+    def _batch_joined(self, batches: list, pose: np.ndarray, closed: bool):
+        """The batch a part joins, None for a new one. The stencil counts in any order: one
+        batch per distinct pose (one on a still scene). The state machine's order is part by
+        part: a silhouette volume alone, consecutive per-triangle parts of one pose together."""
+        if not self.increments_first:
+            return next((b for b in batches if np.array_equal(b[0], pose)), None)
+        last = batches[-1] if batches else None
+        joins = not closed and last is not None and not last[1] and np.array_equal(last[0], pose)
+        return last if joins else None
+
+    def _place(self, light: Light, pose: np.ndarray) -> None:
+        """``model`` = the rigid ``pose``, and the light moved into the part's model space,
+        where the vertices and face planes are (inverse(pose) times the light's vector)."""
+        light_in_part = np.linalg.solve(pose, light_vector(light))
+        for program in self.programs:
+            program.use().set(light=light_in_part, model=pose)
+
+    def _silhouette_increments_first(self, part: int, positional: bool,
+                                     front_increments: bool) -> None:
+        """A silhouette volume drawn twice, culled so that its increments come first."""
+        GL.glEnable(GL.GL_CULL_FACE)
+        for culled_front in (not front_increments, front_increments):
+            GL.glCullFace(GL.GL_FRONT if culled_front else GL.GL_BACK)
+            self._edges([part], positional)
+            self._faces(self.cap_program, self.faces, self.face_ranges[part:part + 1],
+                        self.caps)
+        GL.glDisable(GL.GL_CULL_FACE)
 
     def _edges(self, parts, positional: bool) -> None:
         """Each part's edge quads: for a directional light only their first halves."""
@@ -195,8 +222,9 @@ class GpuVolumes:
         caps = sum(r.count for r in self.face_ranges) if self.caps else 0
         return (edges + caps) * (2 if self.increments_first else 1) + self.polygons.count
 
-    def diagnostics(self, light: Light) -> tuple[dict, list[str]]:
-        """What :meth:`draw` builds for ``light``, recounted in double precision (untimed):
+    def diagnostics(self, light: Light, poses: np.ndarray) -> tuple[dict, list[str]]:
+        """What :meth:`draw` builds for ``light`` and ``poses``, recounted in double precision
+        from the moved meshes (untimed):
         silhouette edges, volumes and the triangles that are not degenerate (each side a
         triangle for a directional light, a quad of two for a spot or point light); and the
         warnings of ``sv_volumes.build``."""
@@ -205,7 +233,8 @@ class GpuVolumes:
         counts = dict.fromkeys(("silhouette_edges", "volume_count", "volume_triangles"), 0)
         warnings = []
         closed = iter(self.edge_meshes)
-        for name, mesh, one in zip(self.names, self.meshes, self.single):
+        for name, mesh, one in zip(self.names, sv_volumes.placed(self.meshes, poses),
+                                   self.single):
             if not len(mesh.faces):
                 warnings.append(f"{name}: no non-degenerate triangles; casts no shadow")
                 continue

@@ -20,11 +20,12 @@ give the volume's cross-section with the camera's near plane (:func:`near_clip_p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
 
+from harness.motion import moved
 from harness.scene import Light, MeshPart
 
 # Below this a triangle is taken as zero-area (twice its area over the squared extent of its
@@ -80,6 +81,15 @@ def clean(part: MeshPart) -> CleanMesh:
             mesh = trimesh.Trimesh(unique, faces, process=False)
         convex = closed and bool(mesh.is_convex)
     return CleanMesh(unique, faces, closed, convex, notes)
+
+
+def placed(meshes: list[CleanMesh], poses: np.ndarray) -> list[CleanMesh]:
+    """``meshes`` where ``poses`` (``Frame.part_poses``) put them, their vertices rounded to
+    float32 as the scene's moved parts' are, so that each gives the triangles :func:`clean`
+    gives for its moved part; a mesh whose pose is the identity is kept."""
+    return [mesh if np.array_equal(pose, np.eye(4)) else replace(
+        mesh, vertices=moved(mesh.vertices, pose).astype(np.float64))
+        for mesh, pose in zip(meshes, poses)]
 
 
 def light_facing(tri: np.ndarray, light: Light) -> np.ndarray:

@@ -169,11 +169,7 @@ def sequence_and_still(name, k, settings=None, data=MOVING):
     return (followed, render(fresh, still), first, frame, still), resources
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(
-        strict=True, reason="sv follows moving casters once GpuVolumes draws each part with "
-                            "its Frame.part_poses as the model transform (today: identity)"))
-    if n == "sv" else n for n in TECHNIQUES])
+@pytest.mark.parametrize("name", TECHNIQUES)
 @pytest.mark.parametrize("data", [MOVING, SPOT_LIT], ids=["directional", "spot"])
 def test_a_moved_caster_renders_what_a_still_scene_with_it_there_does(name, data, gl_context):
     """Frame 2 of MOVING and SPOT_LIT (the box spun and orbited), reached by preparing at
@@ -182,9 +178,8 @@ def test_a_moved_caster_renders_what_a_still_scene_with_it_there_does(name, data
     Catches a Frame.move_to that leaves the vertex buffer (every map and the G-buffer) at
     frame 0, a light frustum or warp body fitted to frame 0's bounds, geometry built in
     prepare that ignores the parts' poses (silhouette's edge mesh, or its face normals left
-    unturned; sv's GPU volumes, uploaded once and drawn with an identity model, hence xfail
-    until they apply the poses), and poses applied again to a moved frame run as a still
-    scene (whose parts are already moved)."""
+    unturned; sv's GPU volumes, uploaded once and drawn with an identity model), and poses
+    applied again to a moved frame run as a still scene (whose parts are already moved)."""
     result, resources = sequence_and_still(name, 2, COARSE.get(name), data)
     try:
         if result is None:

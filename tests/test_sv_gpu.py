@@ -12,7 +12,7 @@ from conftest import ROOT, SCENE_FILE
 
 from harness import config
 from harness.gl.shaders import Program
-from harness.scene import Light, load_scene
+from harness.scene import Light, build_scene, load_scene
 from harness.technique import Frame, reset_gl_state
 from techniques import sv_cpu
 from techniques.sv import ShadowVolumes
@@ -199,3 +199,74 @@ def test_full_screen_passes_shade_covered_pixels_only(params, rectangles, frames
         assert 0 < passes["stencil_mask"] < covered
     else:
         assert passes["normalize"] == rectangles * covered
+
+
+# box_plane's plane, then a 4 x 4 lid (open: per-triangle volumes) and a box (closed: one
+# silhouette volume), each on its own path: at frame 2 the lid has turned and slid over the
+# camera, which is then in its shadow (the near plane inside its volume), and the box has
+# spun and orbited
+MOVING_PARTS = {
+    "resolution": [64, 48],
+    "camera": {"position": [0, -6, 4], "target": [0, 0, 0], "up": [0, 0, 1]},
+    "light": {"type": "directional", "direction": [-0.3, 0.2, -1]},
+    "objects": [{"shape": "plane", "size": [10, 10]},
+                {"shape": "plane", "name": "lid", "size": [4, 4],
+                 "translate": [0.36, -8.5, 5.2]},
+                {"shape": "box", "name": "caster", "size": [1, 2, 0.5],
+                 "translate": [1, 0, 1.5]}],
+    "motion": {"frames": 3, "objects": [
+        {"object": "lid", "spin": 30, "translate": [0, 3, 0]},
+        {"object": "caster", "spin": 90, "orbit": 60, "centre": [0, 0, 0]}]}}
+# above the box where frame 2 puts it: there it lights the top face only (4 silhouette edges),
+# at frame 0 the top and one side (6)
+SPOT = {"type": "spot", "position": [0.45, 0.9, 8], "target": [0, 0, 0], "fov": 100}
+# the stencil's draw (any order), the state machine's (part by part), and nearclip's clip
+# polygons beside the GPU volumes (stencil) and with the CPU-built ones (alpha)
+MOTION_COMBOS = [{}, {"method": "nearclip"}, {"buffer": "alpha"},
+                 {"buffer": "alpha", "method": "nearclip"},
+                 {"buffer": "screen", "normalize": "max", "method": "zpass"}]
+
+
+@pytest.mark.parametrize("light", [MOVING_PARTS["light"], SPOT], ids=["directional", "spot"])
+@pytest.mark.parametrize("params", MOTION_COMBOS, ids=lambda p: "-".join(p.values()) or "default")
+def test_moved_parts_cast_the_volumes_of_a_still_scene_with_them_there(light, params,
+                                                                        gl_context):
+    """Prepared at frame 0 and moved to frame 2, sv renders, before any ``update`` at frame 2,
+    exactly the V of a fresh run on the still scene with the lid and the box where frame 2 puts
+    them (their vertices moved on the CPU; identity poses), and after ``update`` the same
+    volume counts, clip-polygon triangles and warnings; the shadow moved (V differs from frame
+    0's), and the camera entered the lid's volume (clip polygons at frame 2, none at frame 0);
+    under SPOT the box's silhouette changed.
+    Catches the poses set in the untimed ``update`` instead of the volume pass, a part drawn
+    with another's pose (the lid's per-triangle volumes batched with the still plane's), the
+    light left in world space for a turned part, clip polygons or CPU-built volumes from the
+    meshes as prepared, and diagnostics not recounted when only the objects moved, or
+    recounted from the meshes as prepared."""
+    moving = build_scene("moving_parts", config.Scene(**{**MOVING_PARTS, "light": light}))
+    frame, still = Frame(moving), Frame(moving.at_frame(2))
+    followed, fresh = (ShadowVolumes(ShadowVolumes.Params(**params)) for _ in range(2))
+    try:
+        followed.prepare(frame)
+        followed.update(frame)
+        first = followed.render(frame)
+        frame.move_to(2)
+        before_update = followed.render(frame).visibility
+        followed.update(frame)
+        moved = followed.render(frame)
+        fresh.prepare(still)
+        fresh.update(still)
+        expected = fresh.render(still)
+        np.testing.assert_array_equal(before_update, expected.visibility)
+        np.testing.assert_array_equal(moved.visibility, expected.visibility)
+        assert moved.extra == expected.extra and moved.warnings == expected.warnings
+        assert moved.shadow_fragments == expected.shadow_fragments
+        assert np.count_nonzero(moved.visibility != first.visibility) > 50
+        if light is SPOT:
+            assert (first.extra["silhouette_edges"], moved.extra["silhouette_edges"]) == (6, 4)
+        if params.get("method") == "nearclip":
+            assert first.extra["near_clip_triangles"] == 0
+            assert moved.extra["near_clip_triangles"] > 0
+    finally:
+        for resource in (followed, fresh, frame, still):
+            resource.release()
+        reset_gl_state()
