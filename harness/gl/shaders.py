@@ -57,6 +57,9 @@ class Program:
         stages = [(GL.GL_VERTEX_SHADER, vertex), (GL.GL_FRAGMENT_SHADER, fragment)]
         if geometry is not None:
             stages.append((GL.GL_GEOMETRY_SHADER, geometry))
+        self._link(stages, defines, f"{Path(vertex).name}+{Path(fragment).name}")
+
+    def _link(self, stages, defines: dict | None, label: str) -> None:
         shaders = []
         try:  # a failed stage must not leave the stages compiled before it alive
             for kind, path in stages:
@@ -71,7 +74,7 @@ class Program:
         if not GL.glGetProgramiv(self.id, GL.GL_LINK_STATUS):
             log = GL.glGetProgramInfoLog(self.id).decode(errors="replace").strip()
             GL.glDeleteProgram(self.id)
-            raise ShaderError(f"{Path(vertex).name}+{Path(fragment).name} did not link: {log}")
+            raise ShaderError(f"{label} did not link: {log}")
         self._locations: dict[str, int] = {}
 
     def use(self) -> "Program":
@@ -117,3 +120,10 @@ class Program:
 
     def release(self) -> None:
         GL.glDeleteProgram(self.id)
+
+
+class ComputeProgram(Program):
+    """A program of one compute shader (GL 4.3)."""
+
+    def __init__(self, compute: Path, defines: dict | None = None):
+        self._link([(GL.GL_COMPUTE_SHADER, compute)], defines, Path(compute).name)
