@@ -117,7 +117,8 @@ def cmd_run(args) -> int:
         scenes=_names("--scenes", args.scenes),
         techniques=_names("--techniques", args.techniques),
         overrides=run.parse_overrides(args.set or []),
-        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics})
+        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
+                "cost": args.cost})
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
@@ -257,6 +258,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--statistics", metavar="METHOD",
                    help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
                         "(default: the experiment's, else order)")
+    q.add_argument("--cost", metavar="POLICY",
+                   help="dynamic (every frame pays for what depends on the light and the "
+                        "geometry) or static (that is done once, reported as setup_ms; "
+                        "default: the experiment's, else dynamic)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")

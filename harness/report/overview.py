@@ -38,7 +38,7 @@ def summaries(current, shown, colours: dict[str, str]) -> list[dict]:
     baseline at equal error and worst case, with its failed and noisy runs."""
     failed = shown[shown["status"] == "error"].groupby("technique").size()
     tables = []
-    for cost, cost_title in plots.axes(current, plots.COSTS).items():
+    for cost, cost_title in plots.cost_axes(current).items():
         for error, error_title in plots.axes(current, plots.ERRORS).items():
             table = analysis.summary(current, cost=cost, error=error)
             rows = []
