@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict
 from . import metrics
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
-from .gl.geometry import FullscreenTriangle, scene_vertex_array
+from .gl.geometry import FullscreenTriangle, SceneMesh
 from .gl import measure as pass_measure
 from .gl.measure import PassMeter, default_timer
 from .gl.shaders import HARNESS_GLSL, Program
@@ -172,7 +172,7 @@ class Frame:
         self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
-        self.geometry = scene_vertex_array(scene.triangles, scene.face_normals, scene.face_albedo)
+        self.geometry = SceneMesh(*scene.indexed, scene.face_normals, scene.face_albedo)
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
