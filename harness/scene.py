@@ -16,7 +16,9 @@ import numpy as np
 import trimesh
 
 from . import config as cfg
+from . import families
 from . import motion as motion_paths
+from . import topology
 from .interrupt import raise_if_interrupted
 
 
@@ -101,12 +103,30 @@ class BuiltScene:
         v = self.triangles.reshape(-1, 3)
         return np.stack([v.min(0), v.max(0)]).astype(np.float64)
 
+    @cached_property
+    def edges(self) -> topology.Edges:
+        return topology.edges([p.vertices for p in self.parts], [p.faces for p in self.parts])
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """The per-run counts: triangles, parts, open parts, and the shadow edges seen from
+        this scene's light (harness.topology)."""
+        return {"triangles": len(self.triangles), "parts": self.edges.parts,
+                "open_parts": self.edges.open_parts,
+                "shadow_edges": topology.shadow_edges(self.edges, self.triangles, self.light)}
+
+    def _sharing_geometry(self, scene: "BuiltScene") -> "BuiltScene":
+        """``scene`` (of the same triangles) given what this one computed of them."""
+        for name in _GEOMETRY:
+            if name in self.__dict__:
+                scene.__dict__[name] = self.__dict__[name]
+        return scene
+
     def with_resolution(self, width: int, height: int) -> "BuiltScene":
         new_config = self.config.model_copy(update={"resolution": (width, height)})
-        return BuiltScene(
+        return self._sharing_geometry(BuiltScene(
             self.name, new_config, self.parts, self.light, scene_key(new_config, self.source),
-            self.source,
-        )
+            self.source))
 
     @property
     def frames(self) -> int:
@@ -123,16 +143,14 @@ class BuiltScene:
                 raise IndexError(f"frame {t} of the still scene {self.name!r}")
             return self
         config = motion_paths.scene_at(self.config, self.bounds.mean(axis=0), t)
-        frame = BuiltScene(self.name, config, self.parts, _light(config.light),
-                           scene_key(config, self.source), self.source)
-        for name in _GEOMETRY:  # the same triangles: computed once per sequence
-            if name in self.__dict__:
-                frame.__dict__[name] = self.__dict__[name]
-        return frame
+        # the same triangles: computed once per sequence
+        return self._sharing_geometry(BuiltScene(self.name, config, self.parts,
+                                                 _light(config.light),
+                                                 scene_key(config, self.source), self.source))
 
 
 # BuiltScene's cached properties that depend only on the geometry
-_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds")
+_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds", "edges")
 
 
 def _transform(obj: cfg.Placed) -> np.ndarray:
@@ -174,6 +192,9 @@ def _base_mesh(obj, source: Path | None) -> trimesh.Trimesh:
     raise TypeError(f"unknown object {obj!r}")
 
 
+FAMILY_ALBEDO = 0.8  # the objects' default
+
+
 def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
     parts = []
     for index, obj in enumerate(scene.objects):
@@ -192,6 +213,9 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
                 faces=faces,
                 albedo=obj.albedo,
             ))
+    if scene.family is not None:
+        parts += [MeshPart(f"{scene.family.kind}:{name}", vertices, faces, FAMILY_ALBEDO)
+                  for name, vertices, faces in families.build(scene.family)]
     return parts
 
 
@@ -208,9 +232,10 @@ def _light(light) -> Light:
 def scene_key(scene: cfg.Scene, source: Path | None = None) -> str:
     """Hash of the scene's geometry, light, camera and motion, including the bytes of any mesh
     files it loads; its ``description`` is prose and stays out, so rewording it keeps references
-    and run ids. A still scene hashes as it did before scenes could move (no ``motion`` key)."""
-    geometry = scene.model_dump(mode="json", exclude={"description"} | (
-        {"motion"} if scene.motion is None else set()))
+    and run ids. A still scene hashes as it did before scenes could move (no ``motion`` key),
+    a scene without a family as before families (no ``family`` key)."""
+    unset = {key for key in ("motion", "family") if getattr(scene, key) is None}
+    geometry = scene.model_dump(mode="json", exclude={"description"} | unset)
     h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):

@@ -14,9 +14,9 @@ from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, loa
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV, NAME_PATTERN
 from .mesh_files import load_mesh, resolve_mesh_path
 from .scene_schema import (MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule, Coordinate,
-                           Cylinder, DirectionalLight, FieldOfView, Lathe, Light, MeshFile,
+                           Cylinder, DirectionalLight, Family, FieldOfView, Lathe, Light, MeshFile,
                            Motion, Placed, Plane, Scene, SceneFile, SceneObject, Size, Sphere,
-                           SpotLight, SquareInt, Strict, Vec3, check_resolution, load_scenes,
+                           SpotLight, SquareInt, Strict, TriangleCount, Vec3, check_resolution, load_scenes,
                            square_number)
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, format_validation_error,
                           key_error, read_yaml)
@@ -24,11 +24,11 @@ from .yaml_source import _line_of as _line_of  # the planner names the line of a
 
 __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
-    "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "FieldOfView", "Grid", "Lathe",
+    "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "Family", "FieldOfView", "Grid", "Lathe",
     "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG", "MAX_YAML_NODES", "MIN_DOLLY",
     "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed", "Plane", "ReferenceSettings",
     "Scalar", "Scene", "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
-    "Strict", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
+    "Strict", "TriangleCount", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
     "load_experiment", "load_mesh", "load_scenes", "read_yaml", "resolve_mesh_path",
     "square_number", "with_timing",
 ]

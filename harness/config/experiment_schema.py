@@ -10,7 +10,7 @@ from pydantic import ConfigDict, Field, ValidationError, field_validator, model_
 
 from ..timing import STATISTICS
 from .limits import DEFAULT_TRIANGLE_BUDGET
-from .scene_schema import SquareInt, Strict
+from .scene_schema import SquareInt, Strict, TriangleCount
 from .yaml_source import ConfigError, format_validation_error, read_yaml
 
 Scalar = Union[bool, int, float, str]
@@ -81,6 +81,8 @@ class Experiment(Strict):
     techniques: Union[Literal["all", "curves"], dict[str, Union[Grid, list[Grid]]]]
     resolutions: list[tuple[int, int]] | None = None  # default: each scene's own
     triangle_budget: int = Field(DEFAULT_TRIANGLE_BUDGET, ge=1, le=100_000_000)
+    # sizes of the family scenes: each becomes the scenes name@size (e.g. architecture@1e5)
+    triangles: list[TriangleCount] | None = None
     frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
     warmup: int = Field(2, ge=0, le=1000)
     # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
@@ -104,6 +106,13 @@ class Experiment(Strict):
         for name, grids in v.items():
             if isinstance(grids, list) and not grids:
                 raise ValueError(f"{name}: empty list of grids")
+        return v
+
+    @field_validator("triangles")
+    @classmethod
+    def _some_sizes(cls, v):
+        if v is not None and not v:
+            raise ValueError("must list at least one size, e.g. [1e3, 1e4]")
         return v
 
     @field_validator("resolutions")

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError,
+from pydantic import (AfterValidator, BeforeValidator, BaseModel, ConfigDict, Field, ValidationError,
                       field_validator, model_validator)
 
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
@@ -198,6 +198,54 @@ class MeshFile(Placed):
     path: str
 
 
+def _triangle_count(value):
+    """A triangle count: an integer, or a number written like 1e5 (YAML reads 1e5 as text)."""
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            raise ValueError(f"must be a number of triangles such as 1e5, got {value!r}") from None
+    if isinstance(value, float):
+        if not value.is_integer():
+            raise ValueError(f"must be a whole number of triangles, got {value}")
+        value = int(value)
+    return value
+
+
+TriangleCount = Annotated[int, BeforeValidator(_triangle_count), Field(ge=1)]
+
+
+class Family(Strict):
+    """Procedural geometry of about ``triangles`` triangles (harness/families.py): at most that
+    many, and within 5% below. ``seed`` fixes its random layout."""
+
+    kind: Literal["tessellation", "instancing", "architecture", "foliage"]
+    triangles: TriangleCount
+    seed: int = Field(0, ge=0)
+
+    @model_validator(mode="after")
+    def _enough(self):
+        least = FAMILY_MIN_TRIANGLES[self.kind]
+        if self.triangles < least:
+            raise ValueError(f"triangles: a {self.kind} family needs at least {least:,} "
+                             f"triangles to land within 5% of its target, got {self.triangles:,}")
+        return self
+
+    def at(self, triangles: int) -> "Family":
+        """The family at another size; a ValueError naming why it cannot be."""
+        try:
+            return Family.model_validate({**self.model_dump(), "triangles": triangles})
+        except ValidationError as e:
+            raise ValueError(e.errors()[0]["msg"].removeprefix("Value error, ")
+                             .removeprefix("triangles: ")) from None
+
+
+# the smallest size each family reaches within 5%: one refined box and plane; otherwise a few
+# object copies of up to 320 triangles each
+FAMILY_MIN_TRIANGLES = {"tessellation": 100, "instancing": 1000, "architecture": 1000,
+                        "foliage": 1000}
+
+
 SceneObject = Annotated[
     Union[Plane, Box, Sphere, Cylinder, Capsule, Lathe, MeshFile], Field(discriminator="shape")
 ]
@@ -244,7 +292,8 @@ class Scene(Strict):
     light: Light
     effects: list[Literal["shadow", "direct"]] = ["shadow"]
     ambient: float = Field(0.1, ge=0, le=1)
-    objects: list[SceneObject]
+    objects: list[SceneObject] = []
+    family: Family | None = None  # procedural geometry besides the objects
     motion: Motion | None = None  # a still scene without it
 
     _res = field_validator("resolution")(lambda cls, v: check_resolution(v))
@@ -256,17 +305,26 @@ class Scene(Strict):
             raise ValueError("must include 'shadow'")
         return v
 
-    @field_validator("objects")
-    @classmethod
-    def _objects(cls, v):
-        if not v:
-            raise ValueError("must list at least one object")
-        return v
+    @model_validator(mode="after")
+    def _geometry(self):
+        if not self.objects and self.family is None:
+            raise ValueError("objects: must list at least one object (or the scene a family)")
+        return self
+
+    def at_triangles(self, triangles: int) -> "Scene":
+        """The scene with its family at another size."""
+        return self.model_copy(update={"family": self.family.at(triangles)})
 
 
 class SceneFile(Strict):
     scenes: dict[str, Scene]
 
+
+
+def _within_budget(path: Path, node, loc: tuple, total: int, budget: int | None) -> None:
+    if budget is not None and total > budget:
+        raise key_error(path, node, loc, f"{total:,} triangles, more than the budget of "
+                        f"{budget:,} (an experiment may raise it with triangle_budget:)")
 
 
 def load_scenes(path: str | Path, *,
@@ -286,13 +344,12 @@ def load_scenes(path: str | Path, *,
     except ValidationError as e:
         raise ConfigError(format_validation_error(path, e, node)) from None
     for name, scene in scene_file.scenes.items():
-        total = 0
+        total = scene.family.triangles if scene.family else 0
+        _within_budget(path, node, ("scenes", name, "family", "triangles"), total,
+                       triangle_budget)
         for i, obj in enumerate(scene.objects):
             one = (_check_mesh(path, node, name, i, obj) if isinstance(obj, MeshFile)
                    else obj.triangles())
             total += one * math.prod(obj.array.count if obj.array else (1, 1, 1))
-        if triangle_budget is not None and total > triangle_budget:
-            raise key_error(path, node, ("scenes", name, "objects"),
-                            f"{total:,} triangles, more than the budget of {triangle_budget:,} "
-                            "(an experiment may raise it with triangle_budget:)")
+        _within_budget(path, node, ("scenes", name, "objects"), total, triangle_budget)
     return scene_file.scenes

@@ -117,19 +117,25 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
         node, exp_path, exp_text = None, Path("(command line)"), ""
     exp = cfg.with_timing(exp, **(timing or {}))
-    all_scenes = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget)
+    declared = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget)
+    all_scenes, stands_for = sized_scenes(declared, exp, exp_path, node)
 
-    wanted_scenes = list(all_scenes) if exp.scenes == "all" else list(exp.scenes)
-    for i, name in enumerate(wanted_scenes):
-        if name not in all_scenes:
+    wanted = list(declared) if exp.scenes == "all" else list(exp.scenes)
+    for i, name in enumerate(wanted):
+        if name not in declared:
             raise cfg.key_error(exp_path, node, ("scenes", i),
                                 f"no scene {name!r} in {scene_file}; it has "
-                                f"{', '.join(all_scenes)}")
+                                f"{', '.join(declared)}")
+    if exp.triangles and not any(declared[name].family for name in wanted):
+        raise cfg.key_error(exp_path, node, ("triangles",),
+                            "sizes family scenes, but none of the experiment's scenes has a family")
+    wanted_scenes = [sized for name in wanted for sized in stands_for[name]]
     if scenes:
         for name in scenes:
-            if name not in all_scenes:
+            if name not in all_scenes and name not in stands_for:
                 raise cfg.ConfigError(f"--scenes: no scene {name!r} in {scene_file}; it has "
                                       f"{', '.join(all_scenes)}")
+        scenes = [sized for name in scenes for sized in stands_for.get(name, [name])]
         outside = [s for s in scenes if s not in wanted_scenes]
         if experiment_path and outside:
             raise cfg.ConfigError(f"--scenes: {', '.join(outside)} not in {exp_path} (its scenes: "
@@ -193,6 +199,37 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
     return Plan(runs, built, exp_hash, str(exp_path))
+
+
+def size_label(triangles: int) -> str:
+    """1e5 for 100000, 2.5e4 for 25000: the size in a swept scene's name."""
+    mantissa, exponent = f"{triangles:e}".split("e")
+    return f"{float(mantissa):g}e{int(exponent)}"
+
+
+def sized_scenes(declared: dict[str, cfg.Scene], exp: cfg.Experiment, path: Path,
+                 node) -> tuple[dict[str, cfg.Scene], dict[str, list[str]]]:
+    """The scenes an experiment's ``triangles`` sizes make: each family scene becomes one scene
+    per size, ``name@size``, whose family has that size (its own key, references and run ids);
+    the others stay as they are. Also, each declared name with the names it stands for."""
+    scenes, stands_for = {}, {}
+    for name, scene in declared.items():
+        if scene.family is None or not exp.triangles:
+            scenes[name], stands_for[name] = scene, [name]
+            continue
+        stands_for[name] = []
+        for i, triangles in enumerate(exp.triangles):
+            if triangles > exp.triangle_budget:
+                raise cfg.key_error(path, node, ("triangles", i),
+                                    f"{triangles:,} triangles, more than the budget of "
+                                    f"{exp.triangle_budget:,} (raise it with triangle_budget:)")
+            try:
+                sized = scene.at_triangles(triangles)
+            except ValueError as e:
+                raise cfg.key_error(path, node, ("triangles", i), f"scene {name}: {e}") from None
+            stands_for[name].append(f"{name}@{size_label(triangles)}")
+            scenes[stands_for[name][-1]] = sized
+    return scenes, stands_for
 
 
 def grid_points(cls, grid: cfg.Grid, loc: tuple, path: Path, node) -> list[tuple[dict, tuple]]:
