@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup test bench report motion compare microbench microbench-compare reproduce lint clean
+.PHONY: setup test bench report motion scale compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -48,12 +48,24 @@ report: setup
 # scored per frame (flicker, worst frame) -> $(MOTION_OUT)/index.html, with its wall time.
 MOTION_OUT ?= results/motion
 
-motion: setup
+# $(call timed_run,EXPERIMENT,OUT,TARGET): run it into OUT, build its dashboard, print the wall time
+define timed_run
 	@start=$$(date +%s); \
-	$(VENV)/bin/shadowbench run experiments/motion.yaml --out $(MOTION_OUT); status=$$?; \
-	if [ $$status -le 1 ]; then $(VENV)/bin/shadowbench report $(MOTION_OUT) || exit $$?; fi; \
-	echo "make motion: $$(( $$(date +%s) - start )) s wall time"; \
+	$(VENV)/bin/shadowbench run $(1) --out $(2); status=$$?; \
+	if [ $$status -le 1 ]; then $(VENV)/bin/shadowbench report $(2) || exit $$?; fi; \
+	echo "make $(3): $$(( $$(date +%s) - start )) s wall time"; \
 	exit $$status
+endef
+
+motion: setup
+	$(call timed_run,experiments/motion.yaml,$(MOTION_OUT),motion)
+
+# Production scale (experiments/scale.yaml): every technique at its defaults and two points of
+# its quality curve on the four scene families at 10^3 .. 10^6 triangles -> $(SCALE_OUT).
+SCALE_OUT ?= results/scale
+
+scale: setup
+	$(call timed_run,experiments/scale.yaml,$(SCALE_OUT),scale)
 
 # Timings saved as JSON under .benchmarks/<machine>/; compare checks a new run against the last
 # saved one without replacing it.

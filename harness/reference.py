@@ -48,9 +48,10 @@ class Reference:
     visibility: np.ndarray  # float32 (H, W)
     covered: np.ndarray  # bool (H, W)
     direct: np.ndarray | None  # float32 (H, W, 3) direct-lit radiance, or None
-    seconds: float  # ray-tracing time when computed (not the cache load)
+    seconds: float  # ray-tracing time when computed (not the cache load), the build included
     variant: str
     cached: bool = False
+    build_seconds: float = math.nan  # of it, building Mitsuba's scene (its BVH); NaN: not known
 
 
 def cache_dir() -> Path:
@@ -285,6 +286,8 @@ def _read_cached(path: Path, scene: BuiltScene) -> Reference | None:
         with np.load(path) as z:
             visibility, covered, direct = z["visibility"], z["covered"], z["direct"]
             seconds, variant = float(z["seconds"]), str(z["variant"])
+            # entries written before the build was timed apart have no build_seconds
+            build_seconds = float(z["build_seconds"]) if "build_seconds" in z else math.nan
     except Exception:  # numpy raises many types for a damaged file (EOFError, TypeError, ...)
         return None
     shape = (scene.height, scene.width)
@@ -294,7 +297,7 @@ def _read_cached(path: Path, scene: BuiltScene) -> Reference | None:
             or direct.shape != (shape + (3,) if wants_direct else (0,))):
         return None
     return Reference(visibility, covered, direct if wants_direct else None, seconds, variant,
-                     cached=True)
+                     cached=True, build_seconds=build_seconds)
 
 
 _cache_write_failure: str | None = None  # why this process stopped writing the cache
@@ -310,7 +313,7 @@ def _write_cache(path: Path, ref: Reference) -> None:
         # processes sharing the cache (Dask workers) may trace one scene at once
         save_arrays(path, visibility=ref.visibility, covered=ref.covered,
                     direct=ref.direct if ref.direct is not None else np.zeros(0, np.float32),
-                    seconds=ref.seconds, variant=ref.variant)
+                    seconds=ref.seconds, variant=ref.variant, build_seconds=ref.build_seconds)
     except OSError as e:
         _cache_write_failure = f"{path.parent}: {e.strerror or e}"
         warnings.warn(f"reference cache not writable ({_cache_write_failure}); references are "
@@ -345,6 +348,7 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     start = time.perf_counter()
     try:
         mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples, seed))
+        built = time.perf_counter() - start
         visibility, covered = _trace_visibility(mi, mscene, scene, samples, seed)
         direct = None
         if "direct" in scene.config.effects:
@@ -352,7 +356,8 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     except RuntimeError as e:  # what Mitsuba and Dr.Jit raise for a scene they cannot handle
         cause = " ".join(str(e).split()) or type(e).__name__
         raise UntraceableSceneError(f"scene {scene.name!r} cannot be traced: {cause}") from e
-    ref = Reference(visibility, covered, direct, time.perf_counter() - start, variant)
+    ref = Reference(visibility, covered, direct, time.perf_counter() - start, variant,
+                    build_seconds=built)
     if use_cache:
         _write_cache(path, ref)
     return ref

@@ -21,6 +21,7 @@ SCHEMA_VERSION = 1
 COLUMNS: dict[str, type] = {
     "run_id": str, "schema": int, "scene": str, "technique": str, "params": str,
     "width": int, "height": int, "res": float,
+    "triangles": int, "parts": int, "open_parts": int, "shadow_edges": int,
     "time_ms": float, "time_ms_min": float, "time_ms_max": float, "frames": int,
     "time_ms_ci_low": float, "time_ms_ci_high": float, "frame_ms": str,
     "cpu_contention": float, "noisy": int,
@@ -34,7 +35,8 @@ COLUMNS: dict[str, type] = {
     "acne_pct": float, "leak_pct": float, "edge_floor": float, "edge_ratio": float,
     "nonfinite": float, "v_min": float, "v_max": float,
     "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
-    "code_version": str, "ref_samples": int, "ref_seconds": float, "array": str,
+    "code_version": str, "ref_samples": int, "ref_seconds": float,
+    "ref_build_seconds": float, "array": str,
     "reference_array": str,
     "finished_at": str,
 }

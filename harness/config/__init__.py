@@ -28,7 +28,8 @@ __all__ = [
     "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG", "MAX_YAML_NODES", "MIN_DOLLY",
     "MIN_FOV", "MeshFile", "Motion", "NAME_PATTERN", "Placed", "Plane", "ReferenceSettings",
     "Scalar", "Scene", "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
-    "Strict", "TriangleCount", "Vec3", "check_name", "check_resolution", "format_validation_error", "key_error",
+    "Strict", "TriangleCount", "Vec3", "check_name", "check_resolution",
+    "format_validation_error", "key_error",
     "load_experiment", "load_mesh", "load_scenes", "read_yaml", "resolve_mesh_path",
     "square_number", "with_timing",
 ]

@@ -36,7 +36,8 @@ def failed_scene_row(spec: RunSpec, error: Exception) -> dict:
 def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
                    renderer: str) -> dict:
     return {**_run_columns(spec), "scene_ms": scene_ms, "frags_scene": frags_scene,
-            "renderer": renderer, "ref_seconds": reference.seconds}
+            "renderer": renderer, "ref_seconds": reference.seconds,
+            "ref_build_seconds": reference.build_seconds}
 
 
 def _timing_columns(timed) -> dict:
@@ -59,10 +60,11 @@ def _timing_columns(timed) -> dict:
 
 
 def _cost_columns(timed, frame) -> dict:
-    """Timing, counters, fill, memory and the range of V, from the run's last frame."""
+    """Timing, counters, fill, memory and the range of V, from the run's last frame, and the
+    scene's counts (triangles, parts, open parts, shadow edges from that frame's light)."""
     row, output = timed.row, timed.output
     v = output.visibility
-    columns = _timing_columns(timed)
+    columns = {**_timing_columns(timed), **frame.scene.counts}
     frags_shadow = (output.shadow_fragments if output.shadow_fragments is not None
                     else sum(p["fragments"] for p in columns["passes"]))
     columns.update(
