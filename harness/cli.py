@@ -147,7 +147,7 @@ def cmd_run(args) -> int:
         techniques=_names("--techniques", args.techniques),
         overrides=run.parse_overrides(args.set or []),
         timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
-                "max_runs": args.max_runs})
+                "max_runs": args.max_runs, "cost": args.cost})
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
@@ -290,6 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: the experiment's, else order)")
     q.add_argument("--max-runs", metavar="N",
                    help="refuse a plan of more runs (default: the experiment's, else 5000)")
+    q.add_argument("--cost", metavar="POLICY",
+                   help="dynamic (every frame pays for what depends on the light and the "
+                        "geometry) or static (that is done once, reported as setup_ms; "
+                        "default: the experiment's, else dynamic)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -2,18 +2,26 @@
 
 A technique subclasses :class:`Technique`, defines ``name``, ``summary``, ``paper`` and a pydantic
 ``Params`` model, and implements ``prepare``, ``render`` and ``release`` (and ``update`` when
-something depends on the camera or the light). It computes per-pixel light visibility V for the
-G-buffer pixels: its last pass draws V into the frame's visibility target
+something depends on the light and the geometry). It computes per-pixel light visibility V for
+the G-buffer pixels: its last pass draws V into the frame's visibility target
 (``frame.begin_visibility()``), and ``render`` returns ``frame.output(...)``.
 
-The harness calls ``prepare(frame)`` once per run, then ``update(frame)``, then ``render(frame)``
-for each frame. On a moving scene (``motion`` in the scene file) the frame moves to each
-sequence frame's camera, light and objects (:meth:`Frame.move_to`: the scene's vertex buffer
-holds the moved triangles, the G-buffer is rendered again) and the harness calls
-``update(frame)`` before every measured ``render``, so the technique keeps its GL resources
-across the sequence and recomputes only what depends on the view, the light or the geometry.
-Geometry a technique builds once in ``prepare`` from ``frame.scene.parts`` follows moving
-objects through :attr:`Frame.part_poses` (each part's rigid transform from those parts).
+The work is split by what it depends on. ``update(frame)`` holds the work that depends on the
+light and the geometry only (maps, light fits, silhouette edges, shadow-volume geometry);
+``render(frame)`` the per-view work (what depends on the camera: the warps' fit, the shading
+passes). Every piece of either goes inside a timed pass (``frame.measure(name)``); only
+diagnostics a renderer would not compute (aliasing maps, fill counts) stay outside.
+
+The harness calls ``prepare(frame)`` once per run, then frames as the run's cost policy says
+(``cost:`` in the experiment, :mod:`harness.run.measure`): under ``dynamic`` (the default) each
+frame, warm-up and measured, calls ``update`` then ``render``, and its time holds both; under
+``static`` ``update`` is the run's setup, timed apart as ``setup_ms``, and each frame calls
+``render`` alone. On a moving scene (``motion`` in the scene file) the frame moves to each
+sequence frame's camera, light and objects between frames (:meth:`Frame.move_to`: the scene's
+vertex buffer holds the moved triangles, the G-buffer is rendered again), so the technique
+keeps its GL resources across the sequence. Geometry a technique builds once in ``prepare``
+from ``frame.scene.parts`` follows moving objects through :attr:`Frame.part_poses` (each
+part's rigid transform from those parts).
 """
 
 from __future__ import annotations
@@ -104,16 +112,13 @@ class Technique:
         as at frame 0, then moved by :attr:`Frame.part_poses`)."""
 
     def update(self, frame: "Frame") -> None:
-        """Recompute what depends on the frame's camera, light or moving objects (a light
-        frustum's fit, a warp, silhouette edges, shadow volumes): called after ``prepare`` and,
-        on a moving scene, before every measured ``render``; it must give the same state when
-        called again with nothing moved.
-
-        Timing: on a moving scene the work an engine pays every frame goes inside
-        ``frame.measure(name)`` here, and counts in the frame's time as a pass of its own;
-        diagnostics a renderer would not compute (aliasing maps, fill counts) stay outside.
-        On a still scene ``update`` runs once before the warm-up and is never timed, as
-        ``prepare`` is not."""
+        """Recompute what depends on the frame's light and geometry (a light frustum's fit, a
+        map pass, silhouette edges, shadow volumes, where moving objects are now), each step
+        inside ``frame.measure(name)``. Under ``cost: dynamic`` it runs before every
+        ``render``, in the frame's time; under ``static`` it is the setup, repeated to time it
+        (``setup_ms``). Each call redoes the work, as an engine does when the light or the
+        geometry moves, and leaves the same state when nothing moved. What depends on the
+        camera belongs in ``render``."""
 
     def render(self, frame: "Frame") -> ShadowOutput:
         raise NotImplementedError

@@ -226,7 +226,9 @@ class CascadedShadowMap(Technique):
                                                    r.high[:2].astype(np.float64)))
         return found
 
-    def update(self, frame: Frame) -> None:
+    def fit(self, frame: Frame) -> None:
+        """The cascades of the frame's camera and light: per-view work (the splits follow the
+        camera), so ``render`` does it every frame under either cost policy."""
         p = self.params
         near, far = self.depth_range(frame)
         splits = split_depths(near, far, p.splits, getattr(p, "lambda"))
@@ -243,6 +245,7 @@ class CascadedShadowMap(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
+        self.fit(frame)
         for i, light_map in enumerate(self.maps):
             with frame.measure(f"shadow_map_{i}"):
                 light_map.render(frame)

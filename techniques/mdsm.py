@@ -181,16 +181,15 @@ class MultipleDepthShadowMap(Technique):
                           if p.n > 1 else None)
 
     def update(self, frame: Frame) -> None:
+        """The base map and its depth selection: they depend on the light and geometry only."""
         self.passes.update(frame)
+        if self.selection:
+            with frame.measure("mdsm_select"):
+                self.selection.render(frame, self.passes.map.fbo.colors[0])
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         base = self.passes.map
-        with frame.measure("shadow_map"):
-            base.render(frame)
-        if self.selection:
-            with frame.measure("mdsm_select"):
-                self.selection.render(frame, base.fbo.colors[0])
         self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
                                           bias_max=p.bias, slope_bias=p.slope_bias,
                                           window=self.selection.window if self.selection else (0, 0)),

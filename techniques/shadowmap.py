@@ -175,7 +175,8 @@ def camera_rays(frame: Frame) -> dict:
 
 
 class MapShading:
-    """Two passes: the light depth map, then one full-screen pass writing V from it with
+    """Two passes: the light depth map (``update``), then one full-screen pass writing V from it
+    (``render``) with
     ``fragment``, a shader beside this module built on ``shadow_map.glsl`` (``defines`` go to
     it) that gives V = 1 where the G-buffer has no surface (those pixels are not shaded).
     A point light's map is a :class:`CubeDepthMap` (its faces widened by ``cube_guard``
@@ -192,17 +193,19 @@ class MapShading:
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", fragment, **defines)
 
     def update(self, frame: Frame) -> None:
-        """Fit the map to the frame's light: an engine refits it every frame (timed)."""
+        """The map for the frame's light and geometry, each step timed: its fit, then its pass
+        (the work ``cost: static`` charges once)."""
         with frame.measure("light_fit"):
             self.map.fit(frame)
-
-    def render(self, frame: Frame, slope_bias: float, **uniforms) -> None:
-        """Both passes; ``uniforms`` go to the shading shader."""
         if self.cube:
             self.map.render(frame)  # a timed pass per face
         else:
             with frame.measure("shadow_map"):
                 self.map.render(frame)
+
+    def render(self, frame: Frame, slope_bias: float, **uniforms) -> None:
+        """The shading pass on the map of the last ``update``; ``uniforms`` go to the shading
+        shader."""
         self.shade(frame, slope_bias, **uniforms)
 
     def shade(self, frame: Frame, slope_bias: float, texture: Texture | None = None,

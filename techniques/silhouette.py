@@ -129,12 +129,18 @@ class SilhouetteMap(Technique):
         self.counted_pixels = (0, 0)
 
     def update(self, frame: Frame) -> None:
-        """Fit the maps to the frame's light (timed: an engine refits every frame); the
-        silhouette edges are found in the silhouette_map pass of every frame."""
+        """The maps for the frame's light and geometry, each step timed: their fit, the depth
+        map, and the silhouette map (its edges found on the GPU from the edge mesh)."""
         res = self.params.res
         with frame.measure("light_fit"):
             self.frustum = fit_light(frame.scene, res)
             self.depth_map.frustum = half_texel_offset(self.frustum, res)
+        with frame.measure("depth_map"):
+            self.depth_map.render(frame)
+        with frame.measure("silhouette_map"):
+            self.silhouette_fbo.clear(EMPTY_POINT)
+            self.edge_mesh.place(frame.part_poses)  # where moving objects are now
+            self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
 
     def draw_edges(self, frame: Frame, program: Program, draw: Callable[[], None]) -> None:
         """Rasterise silhouette quads into the bound silhouette map: ``draw()`` issues them for
@@ -188,12 +194,6 @@ class SilhouetteMap(Technique):
         return int(shaded), int(silhouette)
 
     def render(self, frame: Frame) -> ShadowOutput:
-        with frame.measure("depth_map"):
-            self.depth_map.render(frame)
-        with frame.measure("silhouette_map"):
-            self.silhouette_fbo.clear(EMPTY_POINT)
-            self.edge_mesh.place(frame.part_poses)  # where moving objects are now
-            self.draw_edges(frame, self.map_program, self.edge_mesh.draw)
         with frame.measure("shading"):
             self._shade(frame, self.shading)
         self._count_diagnostics(frame)

@@ -89,9 +89,11 @@ class WarpedShadowMap(Technique):
         self.map = LightDepthMap(frame, self.params.res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
 
-    def update(self, frame: Frame) -> None:
+    def fit(self, frame: Frame) -> None:
         """The warp of the frame's camera, light and visible receivers, timed (``warp_fit``:
-        an engine fits it every frame); then its aliasing and coverage diagnostics, untimed."""
+        an engine fits it every frame); then its aliasing and coverage diagnostics, untimed.
+        It depends on the camera, so it is per-view work: ``render`` does it, and nothing is
+        left for ``update``."""
         res = self.params.res
         with frame.measure("warp_fit"):
             self.transform, columns = self.warp(view_setup(frame), res)
@@ -115,6 +117,7 @@ class WarpedShadowMap(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
+        self.fit(frame)
         with frame.measure("shadow_map"):
             # casters nearer the light than the fitted range still occlude: depth clamp puts them
             # on the near plane instead of clipping them (past the far plane, where the clamped

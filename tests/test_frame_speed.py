@@ -47,6 +47,7 @@ def sm_as_before(frame, params: dict) -> np.ndarray:
     passes = FilteredShadowMap(frame, params["res"])
     try:
         frame.gbuffer.render(frame.geometry, frame.camera.view_proj)
+        passes.update(frame)
         passes.render(frame, Sampling(bias_min=params["bias"], bias_max=params["bias"],
                                       slope_bias=params["slope_bias"]))
         return frame.visibility_target.read()

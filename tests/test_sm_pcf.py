@@ -218,8 +218,8 @@ def test_costs_reported(scene_at, evaluate):
     # R32F map plus its 32-bit depth+stencil attachment
     assert sm["mem_bytes"] == 256 * 256 * 8
     names = [p["name"] for p in sm["passes"]]
-    assert names == ["shadow_map", "shading"]
-    shading = sm["passes"][1]
+    assert names == ["light_fit", "shadow_map", "shading"]  # cost: dynamic, the default
+    shading = sm["passes"][2]
     # one fragment per covered pixel: the full-screen pass leaves the others out
     assert shading["fragments"] == sm_run.frame_arrays.covered.sum() < 128 * 128
     assert sm["time_ms"] > 0 and sm["nonfinite"] == 0

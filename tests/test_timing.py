@@ -97,7 +97,7 @@ def test_a_real_run_stores_the_interval_of_its_frames(scene_at, evaluate):
     assert row["time_ms"] == pytest.approx(frames[7], abs=1e-4)
     assert row["time_ms_ci_low"] == pytest.approx(frames[3], abs=1e-4)
     assert row["time_ms_ci_high"] == pytest.approx(frames[11], abs=1e-4)
-    assert [p["name"] for p in row["passes"]] == ["shadow_map", "shading"]
+    assert [p["name"] for p in row["passes"]] == ["light_fit", "shadow_map", "shading"]
     for p in row["passes"]:
         assert p["ms_ci_low"] <= p["ms"] <= p["ms_ci_high"]
 

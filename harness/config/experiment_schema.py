@@ -94,6 +94,9 @@ class Experiment(Strict):
     warmup: int = Field(2, ge=0, le=1000)
     # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
     statistics: Literal[STATISTICS] = "order"
+    # what a frame's time holds (harness.run.measure): dynamic, everything that depends on the
+    # light and the geometry, every frame; static, that done once and timed as setup_ms
+    cost: Literal["dynamic", "static"] = "dynamic"
     reference: ReferenceSettings = ReferenceSettings()
     # a typo in a grid (10,000 values for 10) is refused before hours of work, not run
     max_runs: int = Field(DEFAULT_MAX_RUNS, ge=1)
@@ -134,7 +137,7 @@ class Experiment(Strict):
 
 def with_timing(exp: Experiment, **options) -> Experiment:
     """The experiment with command-line timing options (``frames``, ``warmup``,
-    ``statistics``; None keeps the experiment's) validated as if the file had them; a bad
+    ``statistics``, ``cost``; None keeps the experiment's) validated as if the file had them; a bad
     value is a ConfigError naming the option, e.g. ``--frames: must be >= 1, got 0``."""
     given = {k: v for k, v in options.items() if v is not None}
     if not given:

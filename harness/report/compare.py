@@ -5,8 +5,9 @@ Time is worse when B's is more than ``factor`` times A's and, where both runs ca
 interval (``time_ms_ci_low``/``high``), B's interval lies wholly above A's; an error metric is
 worse when it grew by more than ``tolerance`` of A's value (and by more than rounding); a run
 that was ok in A and is not in B is worse. Like ``asv compare``: exit 0, or 1 when something
-got worse. A folder that holds no shadowbench results of this version, or two folders with no
-run in common, are bad input (:class:`ConfigError`, exit 2)."""
+got worse. A folder that holds no shadowbench results of this version, two folders with no
+run in common, or two measured under different cost policies (their times hold different
+work) are bad input (:class:`ConfigError`, exit 2)."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..config import ConfigError
-from .plots import number
+from .plots import cost_policy, number
 from .render import number as shown, render, write_page
 from .stored import read_results
 
@@ -89,6 +90,11 @@ def compare(before: str | Path, after: str | Path, *, factor: float = 1.1,
             tolerance: float = 0.05) -> Comparison:
     before, after = Path(before), Path(after)
     a, b = load(before), load(after)
+    policy_a, policy_b = cost_policy(a), cost_policy(b)
+    if policy_a != policy_b:
+        raise ConfigError(f"{before} (cost: {policy_a}) and {after} (cost: {policy_b}): "
+                          "measured under different cost policies, their times hold different "
+                          "work; compare folders of one policy")
     matched = a.merge(b, on=KEY, suffixes=("_a", "_b"))
     if matched.empty:
         raise ConfigError(f"{before} and {after}: no run in common (same scene, image size, "

@@ -38,7 +38,7 @@ def verdicts(current, shown, colours: dict[str, str]) -> list[dict]:
     """Per size band the current runs fall in (:func:`harness.scaling.size_band`, smallest
     first, unknown last): its scenes and its :func:`summaries`."""
     bands, shown_bands = scaling.size_band(current), scaling.size_band(shown)
-    costs, errors = plots.axes(current, plots.COSTS), plots.axes(current, plots.ERRORS)
+    costs, errors = plots.cost_axes(current), plots.axes(current, plots.ERRORS)
     out = []
     for band in [label for label, _, _ in scaling.SIZE_BANDS] + [scaling.UNKNOWN_SIZE]:
         rows = current[bands == band]

@@ -15,10 +15,12 @@ import numpy as np
 
 from .. import analysis
 
-# column -> axis title (with its unit); offered where the results have finite values
+# column -> axis title (with its unit); offered where the results have finite values. A cost
+# axis is shown with the results' cost policy (:func:`cost_axes`): what a frame's time holds.
 COSTS = {
     "time_ms": "time per frame (ms, median)",
     "gpu_estimate_ms": "estimated GPU time per frame (ms, an estimate from counted work)",
+    "setup_ms": "setup time, once per run (ms, median)",
 }
 ERRORS = {
     "edge_mae": "edge_mae: mean |V − V_ref| within 2 px of a shadow edge",
@@ -62,6 +64,19 @@ def axes(rows, names: dict[str, str]) -> dict[str, str]:
     return {c: t for c, t in names.items() if has_number(rows, c).any()}
 
 
+def cost_policy(rows) -> str:
+    """The cost policy of the rows (their ``cost`` column), several joined by '+'."""
+    policies = sorted({str(p) for p in rows["cost"].dropna()}) if "cost" in rows else []
+    return "+".join(policies) or "unknown"
+
+
+def cost_axes(rows) -> dict[str, str]:
+    """The cost axes the rows have values for, each titled with its column and the rows' cost
+    policy, e.g. ``time_ms (dynamic): time per frame (ms, median)``."""
+    policy = cost_policy(rows)
+    return {c: f"{c} ({policy}): {t}" for c, t in axes(rows, COSTS).items()}
+
+
 def size_label(width, height) -> str:
     return f"{int(width)}x{int(height)}"
 
@@ -69,7 +84,7 @@ def size_label(width, height) -> str:
 def cost_accuracy(current, run_index: dict[str, int]) -> dict:
     """Curves and fronts of one scene's current runs for every (cost, error) choice;
     ``run_index`` maps a run_id to its place in the scene's run list."""
-    costs, errors = axes(current, COSTS), axes(current, ERRORS)
+    costs, errors = cost_axes(current), axes(current, ERRORS)
     sizes = sorted({(int(w), int(h)) for w, h in zip(current["width"], current["height"])},
                    key=lambda s: s[0] * s[1])
     views = {}

@@ -15,7 +15,7 @@ from .viewer import SceneImages
 
 # the run table's columns where the results have them: column -> (heading, digits)
 RUN_COLUMNS = {
-    "time_ms": ("time ms", 3), "gpu_estimate_ms": ("GPU est. ms", 3),
+    "time_ms": ("time ms", 3), "setup_ms": ("setup ms", 3), "gpu_estimate_ms": ("GPU est. ms", 3),
     "edge_mae": ("edge_mae", 3), "edge_floor": ("edge_floor", 3),
     "edge_ratio": ("× floor", 3), "acne_pct": ("acne %", 3), "leak_pct": ("leak %", 3),
     "wrong_pct": ("wrong %", 3), "mae": ("mae", 3), "flip": ("flip", 3), "levels": ("levels", 3),
@@ -65,6 +65,7 @@ def scene_section(images: SceneImages, shown, current, cheapest, budgets,
                                                         for c in RUN_COLUMNS if c in shown],
                      "images": pictures, "unavailable": why})
     run_index = {rid: i for i, rid in enumerate(shown["run_id"])}
+    policy = plots.cost_policy(shown)
     sizes = sorted({(int(w), int(h)) for w, h in zip(shown["width"], shown["height"])},
                    key=lambda s: s[0] * s[1])
     references = {plots.size_label(*s): images.references.get(plots.size_label(*s))
@@ -72,7 +73,9 @@ def scene_section(images: SceneImages, shown, current, cheapest, budgets,
     return {
         "name": images.scene, "description": description,
         "sizes": [plots.size_label(*s) for s in sizes],
-        "columns": [(c, RUN_COLUMNS[c][0]) for c in RUN_COLUMNS if c in shown],
+        # a cost column's heading names the cost policy its times were measured under
+        "columns": [(c, f"{RUN_COLUMNS[c][0]} ({policy})" if c in plots.COSTS
+                     else RUN_COLUMNS[c][0]) for c in RUN_COLUMNS if c in shown],
         "runs": runs, "colours": colours,
         "plot": plots.cost_accuracy(current, run_index) if len(current) else None,
         "cheapest": threshold_table(cheapest, sizes),

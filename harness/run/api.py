@@ -26,11 +26,13 @@ class Evaluation:
 
 def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None, *,
              scene_file: str | Path = "scenes.yaml", resolution: tuple[int, int] | None = None,
-             frames: int = 1, warmup: int = 0, samples: int = 16) -> Evaluation:
+             frames: int = 1, warmup: int = 0, samples: int = 16,
+             cost: str = "dynamic") -> Evaluation:
     """Run one technique on one scene in this process and score it (for tests, notebooks).
 
     ``scene`` is a built scene or the name of one in ``scene_file``; ``resolution`` (width,
-    height) replaces the scene's own. The reference comes from the on-disk cache when present.
+    height) replaces the scene's own; ``cost`` is the cost policy (dynamic or static,
+    :mod:`harness.run.measure`). The reference comes from the on-disk cache when present.
     A moving scene runs its whole sequence (``frames`` is then its length); ``visibility``,
     ``reference``, ``frame_arrays`` and ``mask`` are frame 0's.
     """
@@ -47,7 +49,7 @@ def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None
     checked = validate_params(technique, params or {}, "evaluate()")
     spec = RunSpec(scene.name, technique, checked, scene.width, scene.height,
                    scene.frames if scene.frames > 1 else frames, warmup, samples, 0, scene.key,
-                   cls.code_version())
+                   cls.code_version(), cost=cost)
     reference = compute_reference(scene.at_frame(0), samples=samples)
     frame = Frame(scene)
     try:

@@ -160,6 +160,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "git_dirty": _git_dirty(),
         "experiment": plan.experiment_path,
         "experiment_hash": plan.experiment_hash,
+        "cost": plan.cost,
         "runs_planned": len(plan.runs),
         "scenes": {name: {"description": scene.config.description,
                           "effects": list(scene.config.effects), "meshes": _meshes(scene)}

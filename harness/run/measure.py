@@ -1,5 +1,11 @@
 """Measuring, after planning and above scoring: the runs of one scene and resolution,
-prepared in batches, render their measured frames in interleaved rounds (moving: frame by frame)."""
+prepared in batches, render their measured frames in interleaved rounds (moving: frame by frame).
+
+The run's cost policy (``RunSpec.cost``) says what a frame is. ``dynamic``: the technique's
+``update`` (the work that depends on the light and the geometry) and its ``render`` (the
+per-view work), both in every frame, warm-up and measured. ``static``: ``update`` is the
+run's setup, timed apart (repeated over the same warm-up and measured frames as the frames
+themselves, its own pass record), and every frame is ``render`` alone."""
 
 from __future__ import annotations
 
@@ -33,6 +39,7 @@ class _Timed:
     spec: RunSpec
     row: dict
     meter: object  # harness.gl.measure.PassMeter, the run's own
+    setup: object = None  # under cost: static, the PassMeter of its update's repeats
     technique: object = None
     output: object = None  # harness.technique.ShadowOutput
     measured: int = 0  # measured frames rendered so far
@@ -42,16 +49,20 @@ class _Timed:
     def alive(self) -> bool:
         return "status" not in self.row
 
+    @property
+    def updates_per_frame(self) -> bool:
+        return self.spec.cost == "dynamic"
 
-def _render(timed: _Timed, frame, measuring: bool, update: bool = False) -> None:
-    """One frame of the run; ``update``: the technique's update first, in the same frame (a
-    moving scene's frame: its timed part counts in the frame's time)."""
+
+def _render(timed: _Timed, frame, measuring: bool) -> None:
+    """One frame of the run: under ``cost: dynamic`` the technique's update and its render,
+    under ``static`` its render (its update is the setup, :func:`_measure_setup`)."""
     from ..technique import reset_gl_state
 
     try:
         with frame.metered(timed.meter):
             timed.meter.new_frame(measuring)
-            if update:
+            if timed.updates_per_frame:
                 timed.technique.update(frame)
             timed.output = timed.technique.render(frame)
         timed.measured += measuring
@@ -69,6 +80,8 @@ def _release(timed: _Timed) -> None:
             timed.row["warnings"] = f"release failed: {_one_line(e)}"
         timed.technique = None
     timed.meter.release()
+    if timed.setup is not None:
+        timed.setup.release()
     reset_gl_state()
 
 
@@ -90,10 +103,27 @@ def _attempt(timed: _Timed, step, *args) -> bool:
     return False
 
 
+def _measure_setup(timed: _Timed, frame) -> None:
+    """Under ``cost: static``: the technique's update, the work done once for the fixed light
+    and geometry, repeated over the run's warm-up and measured frames into a pass record of
+    its own (each call redoes the work and leaves the same state)."""
+    from ..technique import reset_gl_state
+
+    timed.setup = frame.new_meter()
+    warmup = timed.spec.warmup
+    for i in range(warmup + timed.spec.frames):
+        try:
+            with frame.metered(timed.setup):
+                timed.setup.new_frame(i >= warmup)
+                timed.technique.update(frame)
+        finally:
+            reset_gl_state()
+
+
 def _start(spec: RunSpec, frame, row: dict) -> _Timed:
-    """Prepare the run, update it to the frame and render its warm-up frames (with no
-    warm-up, its first measured frame; on a moving scene, one unmeasured frame): its map
-    bytes are then known."""
+    """Prepare the run (under ``cost: static``, measure its setup) and render its warm-up
+    frames (with no warm-up, its first measured frame; on a moving scene, one unmeasured
+    frame): its map bytes are then known."""
     cls = registry.get(spec.technique)
     timed = _Timed(spec, row, frame.new_meter())
     moving = frame.frames > 1
@@ -103,8 +133,8 @@ def _start(spec: RunSpec, frame, row: dict) -> _Timed:
         cls.check_light(frame.scene.light)
         timed.technique = cls(cls.Params(**spec.params))
         timed.technique.prepare(frame)
-        with frame.metered(timed.meter):  # not a measured frame: untimed
-            timed.technique.update(frame)
+        if not timed.updates_per_frame:
+            _measure_setup(timed, frame)
         for _ in range(warmup):
             _render(timed, frame, measuring=False)
 
@@ -113,8 +143,8 @@ def _start(spec: RunSpec, frame, row: dict) -> _Timed:
     return timed
 
 
-def _measure_round(batch: list[_Timed], frame, turn: int, update: bool = False) -> None:
-    """One measured frame of each run (``update``: each technique's update first), starting
+def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
+    """One measured frame of each run, starting
     at a position that turns each round (no run always follows the same one). The CPU time
     other processes used during the round is attributed to each run in proportion to its
     share of the round's wall time."""
@@ -123,7 +153,7 @@ def _measure_round(batch: list[_Timed], frame, turn: int, update: bool = False) 
     before, began = cpu_sample(), time.perf_counter()
     for timed in order:
         start = time.perf_counter()
-        if _attempt(timed, _render, timed, frame, True, update):
+        if _attempt(timed, _render, timed, frame, True):
             walls.append((timed, time.perf_counter() - start))
     round_s, after = time.perf_counter() - began, cpu_sample()
     if before is None or after is None or round_s <= 0:
@@ -193,8 +223,8 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
 
 def _run_sequence(batches, frame, on_frame):
     """Runs on a moving scene (``frame`` at its frame 0), batch by batch: each batch goes
-    through the sequence, one interleaved round per frame (each technique's update, then its
-    render, measured), and each run's frame is scored as it is rendered against that frame's
+    through the sequence, one interleaved round per frame (each technique's frame as its cost
+    policy has it, measured), and each run's frame is scored as it is rendered against that frame's
     reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run."""
     from ..reference import compute_reference
 
@@ -220,7 +250,7 @@ def _run_sequence(batches, frame, on_frame):
             traced_s += reference.seconds
             truth = _Truth(t, reference, frame.compared_pixels(reference.covered))
             live = [timed for timed in batch if timed.alive]
-            _measure_round(live, frame, t, update=True)
+            _measure_round(live, frame, t)
             for timed in live:
                 if timed.alive:
                     _attempt(timed, _observe, timed, frame, truth, previous)

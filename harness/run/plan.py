@@ -21,8 +21,9 @@ from ..scene import BuiltScene, build_scene
 class RunSpec:
     """One run. Its stable id covers the scene description and resolution, technique,
     parameters, the technique's code version, frames, warm-up, interval statistics and
-    reference settings: runs whose id is already in ``DIR/results.csv`` are skipped, so a
-    killed sweep restarted with the same arguments finishes the rest without duplicates."""
+    reference settings and cost policy: runs whose id is already in ``DIR/results.csv`` are
+    skipped, so a killed sweep restarted with the same arguments finishes the rest without
+    duplicates."""
 
     scene: str
     technique: str
@@ -36,6 +37,7 @@ class RunSpec:
     scene_key: str = ""
     code_version: str = ""
     statistics: str = "order"  # how the median's interval is computed (harness.timing)
+    cost: str = "dynamic"  # the cost policy (harness.run.measure)
 
     @property
     def params_json(self) -> str:
@@ -46,7 +48,7 @@ class RunSpec:
         text = "|".join(map(str, (self.scene, self.scene_key, self.width, self.height,
                                   self.technique, self.params_json, self.code_version,
                                   self.frames, self.warmup, self.statistics, self.samples,
-                                  self.ref_seed, metrics.VERSION)))
+                                  self.ref_seed, metrics.VERSION, self.cost)))
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -59,6 +61,7 @@ class Plan:
     experiment_hash: str
     experiment_path: str = ""
     notes: list[str] = field(default_factory=list)
+    cost: str = "dynamic"  # the experiment's cost policy, every run's
 
 
 def parse_overrides(values: list[str]) -> dict[str, dict]:
@@ -104,8 +107,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
               timing: dict | None = None) -> Plan:
     """Everything validated up front: a bad input raises ConfigError before any output.
 
-    ``timing``: command-line ``frames``, ``warmup``, ``statistics``, ``max_runs`` replacing the
-    experiment's (see :func:`harness.config.with_timing`)."""
+    ``timing``: command-line ``frames``, ``warmup``, ``statistics``, ``max_runs``, ``cost``
+    replacing the experiment's (see :func:`harness.config.with_timing`)."""
     if experiment_path:
         exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
         exp_path = Path(experiment_path)
@@ -175,6 +178,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         raise cfg.ConfigError(f"{exp_path}: plans {planned:,} runs, more than the limit of "
                               f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
                               "or --max-runs on the command line")
+    if exp.cost == "static":
+        _check_static(wanted_scenes, all_scenes, exp_path, node,
+                      from_option=bool(timing and timing.get("cost")))
     built = {name: build_scene(name, all_scenes[name], Path(scene_file))
              for name in wanted_scenes}
     runs: list[RunSpec] = []
@@ -198,7 +204,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                         frames = scene_at.frames if scene_at.frames > 1 else exp.frames
                         spec = RunSpec(scene_name, tech, params, width, height, frames,
                                        exp.warmup, exp.reference.samples, exp.reference.seed,
-                                       scene_at.key, version, exp.statistics)
+                                       scene_at.key, version, exp.statistics, exp.cost)
                         if spec.run_id not in seen:
                             seen.add(spec.run_id)
                             runs.append(spec)
@@ -206,7 +212,27 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         raise cfg.ConfigError(f"{exp_path}: nothing to run (no scene x technique combination)")
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
-    return Plan(runs, built, exp_hash, str(exp_path))
+    return Plan(runs, built, exp_hash, str(exp_path), cost=exp.cost)
+
+
+def _check_static(names: list[str], scenes: dict, exp_path: Path, node, from_option: bool):
+    """``cost: static`` declares the light and the geometry fixed: a scene whose motion turns
+    the light or moves objects is a ConfigError naming the policy's key (or ``--cost``)."""
+    for name in names:
+        motion = scenes[name].motion
+        if motion is None:
+            continue
+        if motion.light_orbit:
+            why = (f"static declares the light fixed, and scene {name!r} turns it "
+                   f"(motion.light_orbit: {motion.light_orbit:g}); use cost: dynamic")
+        elif motion.objects:
+            why = (f"static declares the geometry fixed, and scene {name!r} moves "
+                   f"{len(motion.objects)} object(s) (motion.objects); use cost: dynamic")
+        else:
+            continue
+        if from_option or node is None:
+            raise cfg.ConfigError(f"--cost: {why}")
+        raise cfg.key_error(exp_path, node, ("cost",), why)
 
 
 def size_label(triangles: int) -> str:

@@ -24,7 +24,8 @@ def _run_columns(spec: RunSpec) -> dict:
     return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
             "technique": spec.technique, "params": spec.params_json, "width": spec.width,
             "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
-            "code_version": spec.code_version, "ref_samples": spec.samples}
+            "code_version": spec.code_version, "ref_samples": spec.samples,
+            "cost": spec.cost}
 
 
 def failed_scene_row(spec: RunSpec, error: Exception) -> dict:
@@ -42,13 +43,18 @@ def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
 
 
 def _timing_columns(timed) -> dict:
-    """Median frame time with its interval, per-pass times and work counters, machine load."""
+    """Median frame time with its interval, per-pass times and work counters, machine load;
+    under ``cost: static`` the setup's median time and interval (``setup_ms``), empty under
+    ``dynamic``, where every frame holds the setup's work."""
     meter, method = timed.meter, timed.spec.statistics
     totals = meter.frame_totals_ms
     time_ms, low, high = median_interval(totals, method=method)
     passes = meter.passes(method)
     load = meter.cpu_contention
+    setup = (median_interval(timed.setup.frame_totals_ms, method=method)
+             if timed.setup is not None else (None, None, None))
     return dict(
+        setup_ms=setup[0], setup_ms_ci_low=setup[1], setup_ms_ci_high=setup[2],
         time_ms=time_ms, time_ms_ci_low=low, time_ms_ci_high=high, time_ms_min=min(totals),
         time_ms_max=max(totals), frame_ms=[round(t, 4) for t in totals],
         cpu_contention=None if load is None else round(load, 4),
