@@ -88,6 +88,7 @@ class WarpedShadowMap(Technique):
     def prepare(self, frame: Frame) -> None:
         self.map = LightDepthMap(frame, self.params.res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
+        self.fit(frame)  # a warp that does not treat the scene's light says so here
 
     def fit(self, frame: Frame) -> None:
         """The warp of the frame's camera, light and visible receivers, timed (``warp_fit``:
