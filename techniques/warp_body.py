@@ -9,6 +9,12 @@ visible receivers (the covered G-buffer pixels): the papers' body B is what the 
 the view frustum clipped to the scene bounds can start at the near plane and end far behind the
 last visible surface. Where no receiver is visible the clipped frustum's range stands in.
 
+The receivers are an object of three questions (:class:`Receivers`): their view-depth range,
+their depth range along a direction in the spot light's clip space, and whether any falls
+outside a map. The warps ask the GPU (``warp_receivers``: one reduction over the G-buffer per
+question, a few floats read back); :class:`ReceiverPoints` answers from points, the CPU copy of
+the G-buffer (:func:`receiver_points`, the tests' oracle) or any point set.
+
 A spot light is warped in its own post-projective space (its clip space, where its rays are
 parallel and it is a directional light travelling along +z), as Wimmer et al.'s reference code
 does; there theta, n and f are measured too.
@@ -18,7 +24,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from itertools import combinations
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -26,6 +34,56 @@ from harness.transforms import (LightFrustum, any_perpendicular_up, box_corners,
                                look_at)
 
 from .warp_diagnostics import outside_unit_cube
+
+
+# --- the visible receivers -------------------------------------------------------------------
+
+
+class Receivers(Protocol):
+    """The visible receivers: covered G-buffer pixels (inside a spot light's frustum)."""
+
+    def depth_range(self, view: np.ndarray) -> tuple[float, float] | None:
+        """The nearest and farthest view depth under ``view`` (world -> camera view); None
+        when no receiver is visible."""
+
+    def range_along(self, clip: np.ndarray, eye: np.ndarray,
+                    forward: np.ndarray) -> tuple[float, float] | None:
+        """The smallest and largest (project(clip, p) - eye) . forward; None when none."""
+
+    def any_outside(self, clip: np.ndarray) -> bool:
+        """Whether any receiver falls outside ``clip``'s unit cube (or behind it)."""
+
+
+@dataclass(frozen=True)
+class ReceiverPoints:
+    """Receivers given as world points (N, 3), float64."""
+
+    points: np.ndarray
+
+    def depth_range(self, view):
+        if len(self.points) == 0:
+            return None
+        depth = -(self.points @ view[2, :3] + view[2, 3])
+        return float(depth.min()), float(depth.max())
+
+    def range_along(self, clip, eye, forward):
+        if len(self.points) == 0:
+            return None
+        depth = (project(clip, self.points) - eye) @ forward
+        return float(depth.min()), float(depth.max())
+
+    def any_outside(self, clip):
+        return bool(outside_unit_cube(clip, self.points, np.ones(len(self.points), bool)).any())
+
+
+def receiver_points(frame, spot: LightFrustum | None) -> ReceiverPoints:
+    """The visible receivers from the CPU copy of the frame's G-buffer (``frame.arrays``):
+    the oracle the GPU reduction is tested against."""
+    arrays = frame.arrays
+    visible = arrays.position[arrays.covered].astype(np.float64)
+    if spot is not None:  # the receivers a spot light can reach: those in its frustum
+        visible = visible[~outside_unit_cube(spot.view_proj, visible, np.ones(len(visible), bool))]
+    return ReceiverPoints(visible)
 
 
 # --- the camera and the light ---------------------------------------------------------------
@@ -43,7 +101,7 @@ class ViewSetup:
     near: float
     far: float
     bounds: np.ndarray
-    visible: np.ndarray  # world positions of the visible receivers, (N, 3)
+    receivers: Receivers  # the visible receivers
     spot: LightFrustum | None = None  # a spot light's perspective frustum; None: directional
     light_position: np.ndarray | None = None  # a spot light's position
 
@@ -72,30 +130,25 @@ class ViewSetup:
     def view_depth(self, points: np.ndarray) -> np.ndarray:
         return -(points @ self.view[2, :3] + self.view[2, 3])
 
-    @property
+    @cached_property
     def visible_depth_range(self) -> tuple[float, float] | None:
         """n and f: the nearest and farthest view depth of the visible receivers (None when no
         receiver is visible)."""
-        if len(self.visible) == 0:
-            return None
-        depth = self.view_depth(self.visible)
-        return float(depth.min()), float(depth.max())
+        return self.receivers.depth_range(self.view)
 
 
-def view_setup(frame) -> ViewSetup:
-    """The camera, light and visible receivers (covered G-buffer pixels, inside a spot light's
-    frustum) of a frame."""
+def view_setup(frame, find_receivers: Callable[..., Receivers]) -> ViewSetup:
+    """The camera, light and visible receivers of a frame: ``find_receivers(frame, spot)``
+    gives the covered G-buffer pixels inside ``spot``, the spot light's frustum (None for a
+    directional light)."""
     light = frame.scene.light
     cam = frame.scene.config.camera
     view = frame.camera.view
-    arrays = frame.arrays
-    visible = arrays.position[arrays.covered].astype(np.float64)
     spot = fit_light(frame.scene, 1) if light.type == "spot" else None
-    if spot is not None:  # the receivers a spot light can reach: those in its frustum
-        visible = visible[~outside_unit_cube(spot.view_proj, visible, np.ones(len(visible), bool))]
     return ViewSetup(view, frame.camera.proj, frame.camera.position, -view[2, :3],
                      np.asarray(light.direction, dtype=np.float64) / np.linalg.norm(light.direction),
-                     float(cam.near), float(cam.far), frame.scene.bounds, visible, spot,
+                     float(cam.near), float(cam.far), frame.scene.bounds,
+                     find_receivers(frame, spot), spot,
                      None if spot is None else np.asarray(light.position, dtype=np.float64))
 
 
@@ -225,7 +278,6 @@ class LightSpace:
     eye: np.ndarray | None
     forward: np.ndarray | None  # unit view direction here
     up: np.ndarray | None  # the camera's up direction here
-    visible: np.ndarray  # the visible receivers here
     rigid: np.ndarray  # world -> rigid light view, rotation only (-z: the light's travel)
     origin: np.ndarray  # world origin of the map's rigid view
 
@@ -244,7 +296,7 @@ def light_space(setup: ViewSetup) -> LightSpace:
     if setup.spot is None:
         body = caster_body(receivers, -setup.light, setup.bounds)
         return LightSpace(np.eye(4), setup.light, receivers, body, body, setup.eye, setup.forward,
-                          setup.view[1, :3], setup.visible,
+                          setup.view[1, :3],
                           look_at(np.zeros(3), setup.light, any_perpendicular_up(setup.light)),
                           setup.eye)
     clip = setup.spot.view_proj
@@ -257,11 +309,10 @@ def light_space(setup: ViewSetup) -> LightSpace:
         eye = project(clip, setup.eye[None])[0]
         forward = _direction_at(clip, setup.eye, setup.forward)
         up = _direction_at(clip, setup.eye, setup.view[1, :3])
-    visible = project(clip, setup.visible)  # all inside its frustum (view_setup)
     rigid = setup.spot.view.copy()
     rigid[:3, 3] = 0.0
-    return LightSpace(clip, light, receivers_here, body, world_body, eye, forward, up, visible,
-                      rigid, setup.light_position)
+    return LightSpace(clip, light, receivers_here, body, world_body, eye, forward, up, rigid,
+                      setup.light_position)
 
 
 def space_theta(space: LightSpace) -> float:
@@ -281,7 +332,7 @@ def space_depth_range(space: LightSpace, setup: ViewSetup) -> tuple[float, float
         depth = np.array(visible) if visible else setup.view_depth(space.receivers)
         near = float(depth.min()) if visible else max(float(depth.min()), setup.near)
     else:
-        points = space.visible if len(space.visible) else space.receivers
-        depth = (points - space.eye) @ space.forward
+        along = setup.receivers.range_along(space.to_space, space.eye, space.forward)
+        depth = (np.array(along) if along else (space.receivers - space.eye) @ space.forward)
         near = max(float(depth.min()), 1e-9 * float(np.abs(depth).max()))
     return near, max(float(depth.max()), near * (1 + 1e-6))

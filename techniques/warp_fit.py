@@ -20,7 +20,6 @@ from harness.transforms import LightFrustum, any_perpendicular_up, look_at
 
 from .warp_body import (LightSpace, ViewSetup, homogeneous, light_space, project,
                         space_depth_range, space_theta)
-from .warp_diagnostics import outside_unit_cube
 from .warp_equations import LAMBDA_MAX, EyeDistance, n_opt
 
 # Fraction of the fitted extent left as margin on each side of the unit cube.
@@ -241,7 +240,7 @@ def post_perspective_warp(setup: ViewSetup, res: int) -> PostPerspective:
         projection = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, -sign],
                                [0, 0, -1, 0]], dtype=np.float64)
     clip = cube_fit(projection @ light_view @ camera, receivers, body)
-    fallback = bool(outside_unit_cube(clip, setup.visible, np.ones(len(setup.visible), bool)).any())
+    fallback = setup.receivers.any_outside(clip)
     if fallback:
         theta = space_theta(space)
         clip = unwarped_clip(space, oriented_basis(space.light, warp_axis(space, theta, setup.phi)))

@@ -19,9 +19,11 @@ from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from .shadowmap import LightDepthMap
-from .warp_body import (LightSpace, ViewSetup, caster_body, convex_vertices, homogeneous,
-                        light_space, padded_bounds, project, receiver_body, space_depth_range,
-                        space_theta, view_setup)
+from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
+                        convex_vertices, homogeneous, light_space, padded_bounds, project,
+                        receiver_body, receiver_points, space_depth_range, space_theta,
+                        view_setup)
+from .warp_receivers import ReceiverReduction
 from .warp_diagnostics import (ALIAS_MIN_COS, NEAR_FRACTION, alias_map, alias_statistics,
                                map_coordinates, outside_unit_cube)
 from .warp_equations import (LAMBDA_MAX, EyeDistance, aliasing_F, gmnpr_eye_distance,
@@ -36,8 +38,11 @@ __all__ = [
     "LAMBDA_MAX", "EyeDistance", "aliasing_F", "gmnpr_eye_distance", "lambda_gmnpr",
     "lambda_lispsm", "lambda_minimum_norm", "lispsm_eye_distance", "n_opt",
     # warp_body
-    "LightSpace", "ViewSetup", "caster_body", "convex_vertices", "homogeneous", "light_space",
-    "padded_bounds", "project", "receiver_body", "space_depth_range", "space_theta", "view_setup",
+    "LightSpace", "ReceiverPoints", "Receivers", "ViewSetup", "caster_body", "convex_vertices",
+    "homogeneous", "light_space", "padded_bounds", "project", "receiver_body", "receiver_points",
+    "space_depth_range", "space_theta", "view_setup",
+    # warp_receivers
+    "ReceiverReduction",
     # warp_fit
     "CUBE_MARGIN", "PostPerspective", "Warp", "cube_fit", "frustum_from_clip", "light_space_warp",
     "local_light_view", "oriented_basis", "post_perspective_warp", "unwarped_clip", "warp_axis",
@@ -88,6 +93,7 @@ class WarpedShadowMap(Technique):
     def prepare(self, frame: Frame) -> None:
         self.map = LightDepthMap(frame, self.params.res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
+        self.receivers = ReceiverReduction()
         self.fit(frame)  # a warp that does not treat the scene's light says so here
 
     def fit(self, frame: Frame) -> None:
@@ -97,7 +103,7 @@ class WarpedShadowMap(Technique):
         left for ``update``."""
         res = self.params.res
         with frame.measure("warp_fit"):
-            self.transform, columns = self.warp(view_setup(frame), res)
+            self.transform, columns = self.warp(view_setup(frame, self.receivers.find), res)
             self.map.frustum = self.transform.frustum
         arrays = frame.arrays
         alias = alias_map(self.transform.clip, res, arrays.position, arrays.normal,
@@ -144,7 +150,7 @@ class WarpedShadowMap(Technique):
 
     def release(self) -> None:
         # prepare may have stopped early (a failed compile)
-        for name in ("map", "shading"):
+        for name in ("map", "shading", "receivers"):
             resource = self.__dict__.pop(name, None)
             if resource is not None:
                 resource.release()

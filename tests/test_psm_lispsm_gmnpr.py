@@ -68,7 +68,7 @@ def setup_and_arrays(scene):
     """The warps' ViewSetup of a scene and its G-buffer arrays."""
     frame = Frame(scene)
     try:
-        return W.view_setup(frame), frame.arrays
+        return W.view_setup(frame, W.receiver_points), frame.arrays
     finally:
         frame.release()
 
@@ -146,7 +146,7 @@ def test_hard_case_lights_stay_near_sm(shipped_scenes, gl_context, evaluate, the
     base = shipped_scenes["terrain_long"]
     if theta == "phi":
         frame = Frame(variant(shipped_scenes, "terrain_long", 128))
-        theta = math.degrees(W.view_setup(frame).phi)
+        theta = math.degrees(W.view_setup(frame, W.receiver_points).phi)
         frame.release()
     scene = variant(shipped_scenes, "terrain_long", 128,
                     direction=light_at(base, theta, behind=behind))
@@ -197,7 +197,7 @@ def test_far_from_origin_keeps_float32_precision(gl_context, evaluate):
                         config.load_scenes(scene_file)["hard_far_from_origin"], scene_file)
     frame = Frame(scene)
     try:
-        setup = W.view_setup(frame)
+        setup = W.view_setup(frame, W.receiver_points)
     finally:
         frame.release()
     assert np.abs(setup.eye).max() > 9e4

@@ -167,7 +167,7 @@ def configurations(draw):
     bounds = np.stack([centre - half, centre + half])
     view = look_at(eye, eye + forward, up)
     setup = W.ViewSetup(view, perspective(yfov, aspect, near, far), eye, forward, light,
-                        near, far, bounds, np.empty((0, 3)))
+                        near, far, bounds, W.ReceiverPoints(np.empty((0, 3))))
     return setup, draw(st.integers(0, 2**31 - 1))
 
 
@@ -194,7 +194,7 @@ def test_random_configurations_matrix_properties(case):
     (casters included) in front of its near plane, slid back no further than needed."""
     setup, seed = case
     points = visible_samples(setup, seed)
-    setup = dataclasses.replace(setup, visible=points)
+    setup = dataclasses.replace(setup, receivers=W.ReceiverPoints(points))
     for choose in (W.lispsm_eye_distance, W.gmnpr_eye_distance):
         warp = W.light_space_warp(setup, 256, choose)
         assert metrics.nonfinite(warp.clip, warp.frustum.view, warp.frustum.proj) == 0
