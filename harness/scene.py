@@ -98,6 +98,15 @@ class BuiltScene:
         return np.concatenate([p.vertices[p.faces] for p in self.parts]).astype(np.float32)
 
     @cached_property
+    def indexed(self) -> tuple[np.ndarray, np.ndarray]:
+        """All parts as one indexed mesh: shared vertices (V, 3) float32 and faces (T, 3)
+        uint32 into them, face i being triangle i of :attr:`triangles`."""
+        offsets = np.cumsum([0] + [len(p.vertices) for p in self.parts])
+        vertices = np.concatenate([p.vertices for p in self.parts]).astype(np.float32)
+        faces = np.concatenate([p.faces + o for p, o in zip(self.parts, offsets)])
+        return vertices, faces.astype(np.uint32)
+
+    @cached_property
     def face_normals(self) -> np.ndarray:
         tri = self.triangles.astype(np.float64)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -167,7 +176,7 @@ class BuiltScene:
 
 
 # BuiltScene's cached properties that depend only on the geometry
-_GEOMETRY = ("triangles", "face_normals", "face_albedo", "bounds", "edges")
+_GEOMETRY = ("triangles", "indexed", "face_normals", "face_albedo", "bounds", "edges")
 
 
 def _transform(obj: cfg.Placed) -> np.ndarray:

@@ -42,7 +42,7 @@ from . import metrics
 from .config import LIGHT_TYPES
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
-from .gl.geometry import FullscreenTriangle, scene_vertex_array
+from .gl.geometry import FullscreenTriangle, SceneMesh
 from .gl import measure as pass_measure
 from .gl.measure import PassMeter, default_timer
 from .gl.shaders import HARNESS_GLSL, Program
@@ -206,7 +206,7 @@ class Frame:
         self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
-        self.geometry = self._scene_vertex_array()
+        self.geometry = self._scene_mesh()
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
@@ -217,9 +217,9 @@ class Frame:
         self.meter = self.new_meter()
         self.arrays = self._camera_pass()
 
-    def _scene_vertex_array(self):
+    def _scene_mesh(self) -> SceneMesh:
         s = self.scene
-        return scene_vertex_array(s.triangles, s.face_normals, s.face_albedo)
+        return SceneMesh(*s.indexed, s.face_normals, s.face_albedo)
 
     def _camera_pass(self):
         self.gbuffer.render(self.geometry, self.camera.view_proj)
@@ -249,7 +249,7 @@ class Frame:
         self.index = index
         if self.scene.parts is not previous.parts:
             self.geometry.release()
-            self.geometry = self._scene_vertex_array()
+            self.geometry = self._scene_mesh()
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
         self.arrays = self._camera_pass()
 

@@ -67,23 +67,25 @@ def test_fullscreen_triangle_counts(size, gl_context, tmp_path):
 
 
 def test_a_run_counts_its_scene_triangles(scene_at, evaluate, gl_context):
-    """sm on box_plane: the shadow-map pass draws the scene's T triangles unindexed (3T vertex
-    invocations, T primitives), the shading pass one full-screen triangle; the row's counters
-    are the sums of its passes, for one frame whatever the number of frames.
+    """sm on box_plane: the shadow-map pass draws the scene's T triangles indexed (one vertex
+    invocation per shared vertex, 12 on box_plane, T primitives), the shading pass one
+    full-screen triangle, the light fit none (CPU work); the row's counters are the sums of its
+    passes, for one frame whatever the number of frames.
 
     Catches: counters summed over every measured frame (x frames), or the row taking one
     pass's counts."""
     scene = scene_at("box_plane", 64, 48)
     row = evaluate(scene, "sm", {"res": 256}, frames=3, warmup=1).row
     triangles = len(scene.triangles)
-    shadow_map, shading = row["passes"]
-    assert (shadow_map["vertex_invocations"], shadow_map["primitives"]) == (3 * triangles,
-                                                                           triangles)
+    light_fit, shadow_map, shading = row["passes"]  # cost: dynamic, the default
+    assert (shadow_map["vertex_invocations"], shadow_map["primitives"]) == (
+        len(scene.indexed[0]), triangles)
+    assert (light_fit["vertex_invocations"], light_fit["primitives"]) == (0, 0)
     assert (shading["vertex_invocations"], shading["primitives"]) == (3, 1)
     assert shading["fragment_invocations"] == expected_fullscreen_fragments(
         64, 48, gl_context.renderer)
     for counter in measure.COUNTERS:
-        assert row[counter] == shadow_map[counter] + shading[counter]
+        assert row[counter] == light_fit[counter] + shadow_map[counter] + shading[counter]
     # the map pass shades every fragment of the scene's triangles seen from the light
     assert shadow_map["fragment_invocations"] >= shadow_map["fragments"] > 0
 

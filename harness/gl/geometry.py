@@ -1,4 +1,4 @@
-"""Vertex arrays: the scene's unrolled triangles, and technique-owned dynamic geometry."""
+"""Vertex arrays: the scene's indexed mesh, and technique-owned dynamic geometry."""
 
 from __future__ import annotations
 
@@ -47,16 +47,54 @@ class VertexArray:
         GL.glDeleteVertexArrays(1, [self.vao])
 
 
-def scene_vertex_array(triangles: np.ndarray, normals: np.ndarray,
-                       albedo: np.ndarray) -> VertexArray:
-    """Position (loc 0), flat normal (loc 1) and albedo (loc 2) per unrolled vertex."""
-    t = len(triangles)
-    data = np.concatenate([
-        triangles.reshape(t, 3, 3),
-        np.repeat(normals[:, None, :], 3, axis=1),
-        np.repeat(albedo[:, None, None], 3, axis=1),
-    ], axis=2)
-    return VertexArray(data, (3, 3, 1))
+# the shader storage binding of SceneMesh's per-face attributes (gbuffer.frag.glsl's)
+FACE_ATTRIBUTES_BINDING = 0
+
+
+class SceneMesh:
+    """The scene as engines draw it: shared vertices (position, loc 0) drawn by index
+    (glDrawElements), so each vertex is shaded once however many triangles share it. What is
+    flat per face (normal, albedo) is a shader storage array of vec4 (xyz normal, w albedo)
+    that a fragment shader reads at ``gl_PrimitiveID``, the face's index in the draw (the
+    G-buffer's), bound by :meth:`bind_face_attributes`."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
+                 albedo: np.ndarray):
+        self.vertex_count, self.index_count = len(vertices), faces.size
+        self.vao = GL.glGenVertexArrays(1)
+        self.vbo, self.ebo, self.face_buffer = GL.glGenBuffers(3)
+        GL.glBindVertexArray(self.vao)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self.vbo)
+        positions = np.ascontiguousarray(vertices, dtype=np.float32)
+        GL.glBufferData(GL.GL_ARRAY_BUFFER, max(positions.nbytes, 4),
+                        positions if len(positions) else None, GL.GL_STATIC_DRAW)
+        GL.glEnableVertexAttribArray(0)
+        GL.glVertexAttribPointer(0, 3, GL.GL_FLOAT, GL.GL_FALSE, 12, ctypes.c_void_p(0))
+        GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.ebo)  # recorded in the VAO
+        indices = np.ascontiguousarray(faces, dtype=np.uint32)
+        GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, max(indices.nbytes, 4),
+                        indices if indices.size else None, GL.GL_STATIC_DRAW)
+        GL.glBindVertexArray(0)
+        attributes = np.ascontiguousarray(np.column_stack([normals, albedo]), dtype=np.float32)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.face_buffer)
+        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(attributes.nbytes, 16),
+                        attributes if len(attributes) else None, GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def bind_face_attributes(self) -> None:
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, FACE_ATTRIBUTES_BINDING,
+                            self.face_buffer)
+
+    def draw(self) -> None:
+        if self.index_count == 0:
+            return
+        GL.glBindVertexArray(self.vao)
+        GL.glDrawElements(GL.GL_TRIANGLES, self.index_count, GL.GL_UNSIGNED_INT, None)
+        GL.glBindVertexArray(0)
+
+    def release(self) -> None:
+        GL.glDeleteBuffers(3, [self.vbo, self.ebo, self.face_buffer])
+        GL.glDeleteVertexArrays(1, [self.vao])
 
 
 class FullscreenTriangle:
