@@ -5,6 +5,11 @@
                 + per_fragment_ms * fragment_invocations
                 + per_fetch_ms    * fetches             (fetches_per_px * covered_px)
                 + per_byte_ms     * bytes               (mem_bytes: the maps, written each frame)
+                + per_compute_ms  * compute_invocations (the GPU reductions, e.g. the warps')
+
+Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
+each map pass (indexed meshes), and the volume vertices a shadow-volume pass extrudes. Compute
+invocations count the reductions' pixels (one invocation per pixel of each dispatch).
 
 All inputs are per frame and stored in each results row, so any estimate can be recomputed
 from results.csv. Two coefficient sets:
@@ -16,7 +21,9 @@ NVIDIA, "NVIDIA Ada GPU Architecture" whitepaper (2023), appendix table "GeForce
 443.5 Gpixel/s (per fragment) and a peak texel rate of 1290.2 Gtexel/s (per fetch); 384-bit
 GDDR6X at 21 Gbps gives 1008 GB/s (per byte). The whitepaper gives no vertex rate: per vertex
 assumes 64 FP32 operations (two 4x4 matrix-vector products, what our vertex shaders do) at the
-whitepaper's 82.6 TFLOPS (1.29e12 vertices/s). Pass overhead is not modelled (0).
+whitepaper's 82.6 TFLOPS (1.29e12 vertices/s); per compute invocation likewise (a reduction's
+pixel: up to three 4x4 matrix-vector products and a shared-memory step). Pass overhead is not
+modelled (0).
 
 ``LLVMPIPE``: fitted here by non-negative least squares (:func:`fit`) to llvmpipe's measured
 ``time_ms``, so the model's fit is checkable: ``python -m harness.cost_model DIR`` prints R^2
@@ -35,7 +42,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-FEATURES = ("passes", "vertices", "fragments", "fetches", "bytes")
+FEATURES = ("passes", "vertices", "fragments", "fetches", "bytes", "computes")
 
 
 @dataclass(frozen=True)
@@ -49,10 +56,11 @@ class Coefficients:
     per_fragment_ms: float
     per_fetch_ms: float
     per_byte_ms: float
+    per_compute_ms: float
 
     def vector(self) -> np.ndarray:
         return np.array([self.per_pass_ms, self.per_vertex_ms, self.per_fragment_ms,
-                         self.per_fetch_ms, self.per_byte_ms])
+                         self.per_fetch_ms, self.per_byte_ms, self.per_compute_ms])
 
 
 RTX_4090 = Coefficients(
@@ -64,6 +72,7 @@ RTX_4090 = Coefficients(
     per_fragment_ms=1e3 / 443.5e9,
     per_fetch_ms=1e3 / 1290.2e9,
     per_byte_ms=1e3 / 1008e9,
+    per_compute_ms=1e3 / (82.6e12 / 64),
 )
 
 # Fitted to experiments/default.yaml (make bench: quality curves at each scene's own size, 15
@@ -80,6 +89,7 @@ LLVMPIPE = Coefficients(
     per_fragment_ms=2.887e-6,
     per_fetch_ms=1.022e-5,
     per_byte_ms=1.161e-7,
+    per_compute_ms=0.0,
 )
 
 GPU = RTX_4090  # what results rows store as gpu_estimate_ms
@@ -99,11 +109,13 @@ def features(row: dict) -> np.ndarray | None:
     if isinstance(passes, str):
         passes = json.loads(passes) if passes else None
     values = [_number(row.get(k)) for k in ("vertex_invocations", "fragment_invocations",
-                                            "fetches_per_px", "covered_px", "mem_bytes")]
+                                            "fetches_per_px", "covered_px", "mem_bytes",
+                                            "compute_invocations")]
     if passes is None or any(v is None for v in values):
         return None
-    vertices, fragments, fetches_per_px, covered_px, mem_bytes = values
-    return np.array([len(passes), vertices, fragments, fetches_per_px * covered_px, mem_bytes])
+    vertices, fragments, fetches_per_px, covered_px, mem_bytes, computes = values
+    return np.array([len(passes), vertices, fragments, fetches_per_px * covered_px, mem_bytes,
+                     computes])
 
 
 def estimate_ms(row: dict, coefficients: Coefficients = GPU) -> float | None:

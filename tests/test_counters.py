@@ -144,7 +144,7 @@ def test_fit_recovers_known_coefficients():
 
     Catches: features in another order than the coefficients, scaling not undone."""
     rng = np.random.default_rng(0)
-    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8)
+    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6)
     rows = []
     for i in range(40):
         row = {"status": "ok", "scene": "s", "width": 8, "height": 8, "technique": "t",
@@ -153,7 +153,8 @@ def test_fit_recovers_known_coefficients():
                "fragment_invocations": int(rng.integers(10**3, 10**7)),
                "fetches_per_px": float(rng.integers(1, 17)),
                "covered_px": int(rng.integers(10**3, 10**6)),
-               "mem_bytes": int(rng.integers(0, 2**26))}
+               "mem_bytes": int(rng.integers(0, 2**26)),
+               "compute_invocations": int(rng.integers(0, 10**6))}
         row["time_ms"] = cost_model.estimate_ms(row, truth)
         rows.append(row)
     fitted = cost_model.fit(rows)

@@ -5,7 +5,8 @@ choice on OSMesa, where timer queries do not load through PyOpenGL); ``query`` u
 GL_TIME_ELAPSED timer query, the GPU's own time for the pass (used on a hardware GPU).
 
 Work counters come from GL_ARB_pipeline_statistics_query (core in GL 4.6): vertex shader
-invocations, fragment shader invocations and primitives entering clipping, per pass. What a
+invocations, fragment shader invocations, primitives entering clipping and compute shader
+invocations (the GPU reductions: one per pixel of the image reduced), per pass. What a
 driver counts as a fragment invocation is its own: llvmpipe counts 16 per 4x4 pixel block a
 triangle touches (partly covered blocks whole, a block on the edge shared by two triangles
 twice); a GPU counts pixels, helper invocations included. Where the driver lacks the extension
@@ -31,6 +32,7 @@ COUNTER_TARGETS = {
     "vertex_invocations": psq.GL_VERTEX_SHADER_INVOCATIONS_ARB,
     "fragment_invocations": psq.GL_FRAGMENT_SHADER_INVOCATIONS_ARB,
     "primitives": psq.GL_CLIPPING_INPUT_PRIMITIVES_ARB,
+    "compute_invocations": psq.GL_COMPUTE_SHADER_INVOCATIONS_ARB,
 }
 COUNTERS = tuple(COUNTER_TARGETS)
 
@@ -46,6 +48,7 @@ class PassStats:
     vertex_invocations: int | None = None
     fragment_invocations: int | None = None
     primitives: int | None = None
+    compute_invocations: int | None = None
 
 
 def default_timer(renderer: str) -> str:
