@@ -1,0 +1,122 @@
+"""The cost policy (``cost: dynamic | static``, harness/run/measure.py): what each technique's
+frames are charged under each, the setup time static reports, and the bad inputs (a policy
+other than the two, static on a moving light, compare across policies) that exit 2."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from harness import registry
+from harness.cli import main as shadowbench
+
+from test_motion import moving
+
+TECHNIQUES = sorted(registry.techniques())
+
+
+def pass_names(row: dict) -> list[str]:
+    return [p["name"] for p in row["passes"]]
+
+
+@pytest.mark.parametrize("name", TECHNIQUES)
+def test_dynamic_charges_a_still_scene_the_passes_of_a_moving_light(name, shipped_scenes,
+                                                                     evaluate):
+    """Under cost: dynamic, every technique's frame on still box_plane holds the same timed
+    passes as on box_plane with its light orbiting (3 frames, 40 degrees): what a moving light
+    makes an engine redo is charged when the light happens to stand still too. Catches a map
+    pass, a light fit, a warp fit or a volume build moved back into work done once (an untimed
+    update on a still scene, as before the policy: sm's light_fit and shadow_map missing)."""
+    still = evaluate(moving(shipped_scenes, "box_plane", (64, 48)), name, frames=2)
+    orbiting = evaluate(moving(shipped_scenes, "box_plane", (64, 48), frames=3,
+                               light_orbit=40), name)
+    if still.row["status"] == "skipped":
+        assert orbiting.row["status"] == "skipped"
+        return
+    assert still.row["status"] == orbiting.row["status"] == "ok", (still.row.get("error"),
+                                                                   orbiting.row.get("error"))
+    assert still.row["cost"] == "dynamic" and still.row["setup_ms"] is None
+    assert pass_names(still.row) == pass_names(orbiting.row)
+
+
+def test_static_moves_the_map_into_setup_and_dynamic_pays_it_every_frame(scene_at, evaluate):
+    """sm with a 2048^2 map on crowd at 128x128 (the map pass is most of the frame), 15
+    frames each: under static the frame is the shading pass alone and setup_ms (light fit and
+    map) is reported with its interval; time_ms(static) + setup_ms equals time_ms(dynamic)
+    within their intervals (each sum's interval from its terms' bounds; on a busy machine this
+    comparison of times can fail, once). Catches the setup missing from dynamic's frames, the
+    map pass left in static's frames, and a setup_ms timing something else (e.g. prepare)."""
+    scene = scene_at("crowd", 128)
+    params = {"res": 2048}
+    dynamic = evaluate(scene, "sm", params, frames=15, warmup=2).row
+    static = evaluate(scene, "sm", params, frames=15, warmup=2, cost="static").row
+    assert pass_names(dynamic) == ["light_fit", "shadow_map", "shading"]
+    assert pass_names(static) == ["shading"] and static["cost"] == "static"
+    assert static["setup_ms_ci_low"] <= static["setup_ms"] <= static["setup_ms_ci_high"]
+    assert static["setup_ms"] > static["time_ms"]  # the map is the larger part
+    low = static["time_ms_ci_low"] + static["setup_ms_ci_low"]
+    high = static["time_ms_ci_high"] + static["setup_ms_ci_high"]
+    assert low <= dynamic["time_ms_ci_high"] and dynamic["time_ms_ci_low"] <= high, (
+        static["time_ms"], static["setup_ms"], dynamic["time_ms"])
+
+
+def _experiment(tmp_path, **keys):
+    path = tmp_path / "experiment.yaml"
+    path.write_text(yaml.safe_dump({"techniques": {"sm": None}, "frames": 1, "warmup": 0,
+                                    **keys}))
+    return path
+
+
+@pytest.mark.parametrize("keys, args, needle", [
+    ({"cost": "fast"}, [], "cost"),
+    ({"cost": None}, [], "cost"),
+    ({}, ["--cost", "sometimes"], "--cost"),
+])
+def test_a_bad_cost_policy_is_exit_2_naming_file_and_key(keys, args, needle, tmp_path,
+                                                         small_scene_file, capsys):
+    """``cost:`` other than dynamic or static, in the experiment or as --cost: exit 2, one
+    line naming the file (or the option) and the key; nothing written. Catches a policy
+    validated late (after output) or not at all (an unknown word run as dynamic)."""
+    path = _experiment(tmp_path, **keys)
+    out = tmp_path / "out"
+    code = shadowbench(["run", str(path), "--scene-file", str(small_scene_file()), "--out",
+                        str(out), "--quiet", *args])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and needle in err, err
+    if not args:
+        assert str(path) in err
+    assert not out.exists()
+
+
+def test_static_on_a_moving_light_is_exit_2(tmp_path, shipped_scenes, capsys):
+    """cost: static declares the light fixed: a scene whose motion turns it is bad input,
+    one line naming the experiment and its cost key. Catches static run on a moving light,
+    whose frames would be shaded from a map made once for frame 0's light."""
+    scene = shipped_scenes["box_plane"].model_dump(mode="json")
+    scene.update(resolution=[32, 32], motion={"frames": 3, "light_orbit": 20})
+    scenes = tmp_path / "scenes.yaml"
+    scenes.write_text(yaml.safe_dump({"scenes": {"orbiting": scene}}))
+    path = _experiment(tmp_path, cost="static")
+    out = tmp_path / "out"
+    code = shadowbench(["run", str(path), "--scene-file", str(scenes), "--out", str(out),
+                        "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert str(path) in err and "cost" in err and "orbiting" in err and "light_orbit" in err
+    assert not out.exists()
+
+
+def test_compare_refuses_folders_of_different_policies(tmp_path, make_results, capsys):
+    """Two folders of the same runs, one measured under dynamic and one under static: their
+    times hold different work, so compare exits 2 with one line naming both folders and their
+    policies; folders of one policy compare as usual. Catches a comparison that reads static's
+    smaller frame times as a speed-up."""
+    runs = [{"params": {"res": 512}, "time_ms": 2.0}]
+    dynamic = make_results(tmp_path / "dynamic", [{**r, "cost": "dynamic"} for r in runs])
+    static = make_results(tmp_path / "static", [{**r, "cost": "static", "time_ms": 0.5,
+                                                 "setup_ms": 1.5} for r in runs])
+    assert shadowbench(["compare", str(dynamic), str(static)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert all(s in err for s in (str(dynamic), str(static), "dynamic", "static")), err
+    assert shadowbench(["compare", str(static), str(static)]) == 0
