@@ -127,6 +127,7 @@ class SilhouetteMap(Technique):
         self.counters = GL.glGenBuffers(1)
         self.edge_count = 0
         self.counted_pixels = (0, 0)
+        self.counted_for = None  # (G-buffer arrays, light frustum) the counts were made for
 
     def update(self, frame: Frame) -> None:
         """The maps for the frame's light and geometry, each step timed: their fit, the depth
@@ -196,7 +197,13 @@ class SilhouetteMap(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         with frame.measure("shading"):
             self._shade(frame, self.shading)
-        self._count_diagnostics(frame)
+        # the counts change only with the camera's view (its G-buffer) or the light's frustum
+        counted_for = (frame.arrays, self.frustum.view, self.frustum.proj)
+        if self.counted_for is None or not (
+                counted_for[0] is self.counted_for[0]
+                and all(np.array_equal(a, b) for a, b in zip(counted_for[1:], self.counted_for[1:]))):
+            self._count_diagnostics(frame)
+            self.counted_for = counted_for
         shaded, silhouette = self.counted_pixels
         share = silhouette / max(shaded, 1)
         return frame.output(

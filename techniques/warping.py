@@ -94,6 +94,7 @@ class WarpedShadowMap(Technique):
         self.map = LightDepthMap(frame, self.params.res)
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl", "warp_shading.frag.glsl")
         self.receivers = ReceiverReduction()
+        self.diagnosed = None  # (G-buffer arrays, warp clip) the diagnostics were made for
         self.fit(frame)  # a warp that does not treat the scene's light says so here
 
     def fit(self, frame: Frame) -> None:
@@ -105,13 +106,23 @@ class WarpedShadowMap(Technique):
         with frame.measure("warp_fit"):
             self.transform, columns = self.warp(view_setup(frame, self.receivers.find), res)
             self.map.frustum = self.transform.frustum
-        arrays = frame.arrays
-        alias = alias_map(self.transform.clip, res, arrays.position, arrays.normal,
-                          arrays.covered)
+        self.diagnose(frame, columns)
+
+    def diagnose(self, frame: Frame, columns: dict) -> None:
+        """The aliasing map and the result columns of the fitted warp, from the CPU copy of
+        the G-buffer (untimed: no renderer computes them). Made again only when the warp or
+        the G-buffer changed: on a still scene every frame's fit is the same, and at ~0.1 s
+        a frame (256^2, NumPy) they would outweigh the frames themselves."""
+        arrays, clip = frame.arrays, self.transform.clip
+        if (self.diagnosed is not None and self.diagnosed[0] is arrays
+                and np.array_equal(self.diagnosed[1], clip)):
+            return
+        self.diagnosed = (arrays, clip)
+        alias = alias_map(clip, self.params.res, arrays.position, arrays.normal, arrays.covered)
         reached = arrays.covered
         if frame.scene.light.type == "spot":  # outside its cone no receiver needs the map
             reached = reached & frame.scene.light.inside_cone(arrays.position)
-        outside = outside_unit_cube(self.transform.clip, arrays.position, reached)
+        outside = outside_unit_cube(clip, arrays.position, reached)
         with np.errstate(divide="ignore", invalid="ignore"):
             self.alias_log2 = np.log2(alias)
         self.columns = dict(

@@ -18,7 +18,8 @@ SCENE_PX = 256
 
 @contextmanager
 def rendered(scene, **params):
-    """The silhouette technique run once on ``scene``, kept alive for inspection."""
+    """The silhouette technique run once on ``scene`` (one cost: dynamic frame, its update and
+    render measured), kept alive for inspection."""
     from harness.technique import Frame, reset_gl_state
     from techniques.silhouette import SilhouetteMap
 
@@ -26,8 +27,8 @@ def rendered(scene, **params):
     technique = SilhouetteMap(SilhouetteMap.Params(**params))
     try:
         technique.prepare(frame)
-        technique.update(frame)
         frame.meter.new_frame(measuring=True)
+        technique.update(frame)
         output = technique.render(frame)
         yield frame, technique, output
     finally:
