@@ -58,17 +58,18 @@ class HardwarePCF(Technique):
         self.shading = self.shader(__file__, "fullscreen.vert.glsl", "hardware_pcf.frag.glsl")
 
     def update(self, frame: Frame) -> None:
+        """The light's fit and depth map: they depend on the light and the geometry only."""
         with frame.measure("light_fit"):
             self.frustum = fit_light(frame.scene, self.params.res)
-
-    def render(self, frame: Frame) -> ShadowOutput:
-        f, light = self.frustum, frame.scene.light
         with frame.measure("shadow_map"):
             self.map.clear()
             GL.glEnable(GL.GL_DEPTH_TEST)
             GL.glDepthFunc(GL.GL_LESS)
-            self.light_pass.use().set(light_view=f.view, light_proj=f.proj)
+            self.light_pass.use().set(light_view=self.frustum.view, light_proj=self.frustum.proj)
             frame.draw_scene()
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        f, light = self.frustum, frame.scene.light
         with frame.measure("shading"):
             frame.begin_visibility()
             self.shading.use()
