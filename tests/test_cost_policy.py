@@ -120,3 +120,19 @@ def test_compare_refuses_folders_of_different_policies(tmp_path, make_results, c
     assert len(err.splitlines()) == 1, err
     assert all(s in err for s in (str(dynamic), str(static), "dynamic", "static")), err
     assert shadowbench(["compare", str(static), str(static)]) == 0
+
+
+def test_the_dashboard_names_the_policy_on_every_cost_axis(tmp_path, make_results):
+    """A static folder's page titles its cost axes and run-table cost headings with the policy
+    (time_ms (static), setup_ms (static)) and none with another. Catches a page that shows
+    static frame times as if they held the whole frame's work."""
+    from harness.report import build_report
+
+    folder = make_results(tmp_path / "static", [
+        {"params": {"res": 512}, "time_ms": 0.5, "setup_ms": 1.5, "cost": "static"},
+        {"params": {"res": 1024}, "time_ms": 0.6, "setup_ms": 3.0, "cost": "static"}])
+    page = build_report(folder).read_text()
+    assert "time_ms (static): time per frame" in page
+    assert "setup_ms (static): setup time" in page
+    assert "time ms (static)" in page and "setup ms (static)" in page
+    assert "(dynamic)" not in page
