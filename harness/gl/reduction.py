@@ -67,6 +67,7 @@ class CoveredRange:
         GL.glMemoryBarrier(GL.GL_BUFFER_UPDATE_BARRIER_BIT)
         result = np.asarray(GL.glGetBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, _EMPTY.nbytes))
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        GL.glUseProgram(0)
         values = decode(result.view(np.uint32))
         return Range(values[:4], values[4:])
 
