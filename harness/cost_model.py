@@ -9,7 +9,7 @@
 
 Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
 each map pass (indexed meshes), and the volume vertices a shadow-volume pass extrudes. Compute
-invocations count the reductions' pixels (one invocation per pixel of each dispatch).
+invocations count the reductions' work (one invocation per 16-pixel column of each dispatch).
 
 All inputs are per frame and stored in each results row, so any estimate can be recomputed
 from results.csv. Two coefficient sets:

@@ -6,7 +6,7 @@ GL_TIME_ELAPSED timer query, the GPU's own time for the pass (used on a hardware
 
 Work counters come from GL_ARB_pipeline_statistics_query (core in GL 4.6): vertex shader
 invocations, fragment shader invocations, primitives entering clipping and compute shader
-invocations (the GPU reductions: one per pixel of the image reduced), per pass. What a
+invocations (the GPU reductions), per pass. What a
 driver counts as a fragment invocation is its own: llvmpipe counts 16 per 4x4 pixel block a
 triangle touches (partly covered blocks whole, a block on the edge shared by two triangles
 twice); a GPU counts pixels, helper invocations included. Where the driver lacks the extension

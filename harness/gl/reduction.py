@@ -20,6 +20,7 @@ from .shaders import HARNESS_GLSL, ComputeProgram
 # the quantity: each covered pixel's view depth (uniform camera_view, world -> camera view)
 VIEW_DEPTH = HARNESS_GLSL / "view_depth_range.comp.glsl"
 GROUP_SIZE = 16
+ROWS_PER_INVOCATION = 16  # each invocation merges a column of this many pixels before its atomics
 _EMPTY = np.array([0xFFFFFFFF] * 4 + [0] * 4, np.uint32)  # low: largest, high: smallest
 
 
@@ -48,7 +49,7 @@ class CoveredRange:
     module docstring) over the pixels of a G-buffer's position texture whose w is 1."""
 
     def __init__(self, shader: Path = VIEW_DEPTH):
-        self.program = ComputeProgram(Path(shader))
+        self.program = ComputeProgram(Path(shader), {"ROWS_PER_INVOCATION": ROWS_PER_INVOCATION})
         self.buffer = GL.glGenBuffers(1)
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.buffer)
         GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, _EMPTY.nbytes, None, GL.GL_DYNAMIC_READ)
@@ -62,8 +63,8 @@ class CoveredRange:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 0, self.buffer)
         self.program.use().set(gbuffer_position=position.bind(0), gbuffer_normal=normal.bind(1),
                                **uniforms)
-        GL.glDispatchCompute(-(-position.width // GROUP_SIZE), -(-position.height // GROUP_SIZE),
-                             1)
+        GL.glDispatchCompute(-(-position.width // GROUP_SIZE),
+                             -(-position.height // (GROUP_SIZE * ROWS_PER_INVOCATION)), 1)
         GL.glMemoryBarrier(GL.GL_BUFFER_UPDATE_BARRIER_BIT)
         result = np.asarray(GL.glGetBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, _EMPTY.nbytes))
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
