@@ -137,7 +137,8 @@ class ShadowVolumes(Technique):
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
         self.volumes, self.near_clip = self._volume_geometry(frame)
         # what the diagnostics were last counted for
-        self.volume_light = self.view_proj = self.poses = None
+        self.view_proj = None  # the frame's camera, set by render
+        self.counted_for = None  # the light, camera and poses the diagnostics are of
         divisor = MASK_DIVISOR[p.mask_res]
         self.shares_scene_depth = divisor == 1
         self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
@@ -165,19 +166,19 @@ class ShadowVolumes(Technique):
                      if p.method == "nearclip" else None)
         return volumes, near_clip
 
-    def update(self, frame: Frame) -> None:
-        """Nothing an engine computes: all that depends on the light, the camera and the
-        objects' poses is drawn in the volume pass, every frame. Only diagnostics (the fill
-        count, volume counts, warnings; untimed) are counted again when any of them moved."""
+    def _count_diagnostics(self, frame: Frame) -> None:
+        """No ``update``: all that depends on the light, the camera and the objects' poses is
+        drawn in the volume pass, every frame, under either cost policy. Only diagnostics (the
+        fill count, volume counts, warnings; untimed, after the timed passes) are counted
+        again when any of them moved."""
         light = frame.scene.light
         light_key = tuple(b"" if v is None else v.tobytes()
                           for v in (light.direction, light.position))
-        view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
         poses = frame.part_poses
-        if (light_key == self.volume_light and np.array_equal(view_proj, self.view_proj)
-                and np.array_equal(poses, self.poses)):
+        counted_for = (light_key, self.view_proj.tobytes(), poses.tobytes())
+        if counted_for == self.counted_for:
             return
-        self.volume_light, self.view_proj, self.poses = light_key, view_proj, poses
+        self.counted_for = counted_for
         self.fill = self._count_fill(light, poses)
         counts, self.warnings = self.volumes.diagnostics(light, poses)
         redraw = self.params.buffer == "screen" and self.shares_scene_depth
@@ -345,6 +346,7 @@ class ShadowVolumes(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
+        self.view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
         if not self.shares_scene_depth:
             with frame.measure("depth"):
                 self._clear_mask()
@@ -360,6 +362,7 @@ class ShadowVolumes(Technique):
                 self._scene_redraw_pass(frame)
         with frame.measure("visibility"):
             self._visibility_pass(frame)
+        self._count_diagnostics(frame)
         fill = dict(self.fill)
         return frame.output(mem_bytes=self.mask.nbytes,
                             fetches_per_px=1 if self.shares_scene_depth else 4,
