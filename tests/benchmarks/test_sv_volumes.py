@@ -39,7 +39,7 @@ def spheres(gl_context):
     frame = Frame(build_scene("sv_spheres", config.Scene(**SCENE)))
     technique = ShadowVolumes(ShadowVolumes.Params())
     technique.prepare(frame)
-    technique.update(frame)
+    technique.render(frame)  # sets its camera and counts its fill
     yield frame, technique
     technique.release()
     reset_gl_state()
