@@ -109,6 +109,9 @@ class MultipleDepthShadowMap(Technique):
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
                        distance to the farthest texel a depth may come
                        from
+    ``normal_offset``  moves the point along its light-facing normal     1.0      >= 0
+                       before the samples, by this many x the texel's
+                       world size there x the sine of the light's angle
     =================  ================================================  =======  ================
     """
 
@@ -132,6 +135,7 @@ class MultipleDepthShadowMap(Technique):
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(1.0, ge=0)
 
         @field_validator("n", "k", "q", mode="wrap")
         @classmethod
@@ -193,6 +197,7 @@ class MultipleDepthShadowMap(Technique):
                 self.selection.render(frame, base.fbo.colors[0])
         self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
                                           bias_max=p.bias, slope_bias=p.slope_bias,
+                                          normal_offset=p.normal_offset,
                                           window=self.selection.window if self.selection else (0, 0)),
                           texture=self.selection.texture if self.selection else None)
         q = p.q if self.selection else 0

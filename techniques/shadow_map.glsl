@@ -20,6 +20,14 @@
 // precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
 // rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
 // matters far from the origin.
+// The plane is a guess where the receiver is not planar within the reach of its reads (curved
+// or creased surfaces, a footprint region widened at grazing angles). There the point itself
+// moves before any read: by normal_offset x the texel's world size at the point x the sine of
+// the angle between its normal and the light ray, along the normal's side facing the light
+// (the side the reference's shadow ray leaves from). On a plane that offset clears
+// normal_offset texels of reach at any angle: the point rises reach x sin above the plane and
+// a read that far away finds the plane at most reach x sin x sec closer along the ray, which
+// is the rise seen along the ray. Bounded by the texel where the slope term grows as the tangent.
 //
 // A shader that picks one of several maps per pixel (csm's cascades) defines MAP_PER_PIXEL
 // before the include and declares light_view, light_proj and map_res as globals it sets before
@@ -41,6 +49,7 @@ float map_depth(ivec2 cell) { return texelFetch(shadow_map, cell, 0).r; }
 uniform bool light_is_ortho;
 uniform float slope_bias;
 uniform float depth_precision;  // float32 rounding of depths this far from the origin
+uniform float normal_offset;  // texels of the map at the point
 
 // Receiver planes closer to edge-on than this (tan of the angle between normal and light,
 // measured per map texel) take this slope: the bias stays finite.
@@ -76,11 +85,6 @@ LightSample to_light(vec3 world) {
 // projective.
 Receiver receiver(vec3 world, vec3 normal) {
     choose_face(world);  // the point's face serves every read of its receiver plane
-    LightSample s = to_light(world);
-    Receiver r;
-    r.texel = s.texel;
-    r.depth = s.depth;
-    r.in_front = s.in_front;
     mat4 m = light_proj * light_view;
     vec4 c = m * vec4(world, 1.0);
     vec3 row_x = vec3(m[0].x, m[1].x, m[2].x);
@@ -99,9 +103,21 @@ Receiver receiver(vec3 world, vec3 normal) {
     // g = b A^-1 = (b adj A) / det; |det| floored so |g| <= MAX_TAN x the texel's world size
     vec2 scaled = b * mat2(a[1].y, -a[0].y, -a[1].x, a[0].x);
     float a_sq = dot(texel_x, texel_x), b_sq = dot(texel_y, texel_y), ab = dot(texel_x, texel_y);
+    // the smaller singular value of d texel / d world: 1 / the texel's larger world side
     float texels_per_world = sqrt(0.5 * (a_sq + b_sq)
                                   - sqrt(max(0.25 * (a_sq - b_sq) * (a_sq - b_sq) + ab * ab, 0.0)));
     float floor_det = length(scaled) * texels_per_world / MAX_TAN;
+    // the light ray through the point (the map position does not move along it), to the light
+    vec3 to_light_ray = normalize(cross(texel_x, texel_y));
+    if (dot(to_light_ray, depth_w) > 0.0) to_light_ray = -to_light_ray;
+    float cos_light = dot(n, to_light_ray);
+    float sin_light = sqrt(max(1.0 - cos_light * cos_light, 0.0));
+    vec3 lit_side = cos_light < 0.0 ? -n : n;
+    LightSample s = to_light(world + lit_side * (normal_offset * sin_light / texels_per_world));
+    Receiver r;
+    r.texel = s.texel;
+    r.depth = s.depth;
+    r.in_front = s.in_front;
     r.depth_slope = scaled / ((det < 0.0 ? -1.0 : 1.0) * max(abs(det), max(floor_det, 1e-30)));
     return r;
 }
