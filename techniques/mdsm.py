@@ -109,9 +109,9 @@ class MultipleDepthShadowMap(Technique):
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
                        distance to the farthest texel a depth may come
                        from
-    ``normal_offset``  moves the point along its light-facing normal     1.0      >= 0
-                       before the samples, by this many x the texel's
-                       world size there x the sine of the light's angle
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before the samples: this many x the texel's
+                       world size there x sin(the light's angle)
     =================  ================================================  =======  ================
     """
 
@@ -135,7 +135,7 @@ class MultipleDepthShadowMap(Technique):
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
 
         @field_validator("n", "k", "q", mode="wrap")
         @classmethod

@@ -57,9 +57,9 @@ class PercentageCloserFiltering(Technique):
     ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
     ``slope_bias``     times the receiver plane's depth slope x each    1.0        >= 0
                        sample's distance to its texel, texels
-    ``normal_offset``  moves the point along its light-facing normal    1.0        >= 0
-                       before the samples, by this many x the texel's
-                       world size there x the sine of the light's angle
+    ``normal_offset``  moves the point along its light-facing normal    0.0        >= 0
+                       before the samples: this many x the texel's
+                       world size there x sin(the light's angle)
     ``seed``           seed of the jitter and bias draws                0          >= 0
     =================  ===============================================  =========  ===========
     """
@@ -82,7 +82,7 @@ class PercentageCloserFiltering(Technique):
         bias_min: float = Field(0.02, ge=0)
         bias_max: float = Field(0.04, ge=0)
         slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
         seed: int = Field(0, ge=0, lt=2**32)
 
         @model_validator(mode="after")

@@ -87,7 +87,7 @@ class SilhouetteMap(Technique):
     ``bias``            constant depth bias, scene units                0.02     >= 0
     ``slope_bias``      times the receiver plane's depth slope x each   1.0      >= 0
                         corner's distance, texels
-    ``normal_offset``   moves the shaded point along its light-facing   1.0      >= 0
+    ``normal_offset``   moves the shaded point along its light-facing   0.0      >= 0
                         normal before its tests, by this many x the
                         texel's world size there x the sine of the
                         light's angle
@@ -110,7 +110,7 @@ class SilhouetteMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
         center_points: bool = False
 
     def prepare(self, frame: Frame) -> None:

@@ -29,8 +29,8 @@ class ShadowMap(Technique):
     ``bias``           constant depth bias, scene units                  0.02     >= 0
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
                        distance to the texel read, texels
-    ``normal_offset``  moves the point along its light-facing normal     1.0      >= 0
-                       before the read, by this many x the texel's world
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before the read: this many x the texel's world
                        size there x the sine of the light's angle
     =================  ================================================  =======  ===========
     """
@@ -49,7 +49,7 @@ class ShadowMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
 
     def prepare(self, frame: Frame) -> None:
         self.passes = MapShading(frame, self.params.res, "sm_shading.frag.glsl")
