@@ -170,37 +170,46 @@ def test_no_acne_far_from_the_origin(evaluate):
         assert row["acne_pct"] <= 0.1, (technique, row["acne_pct"])
 
 
-# Family (c) at 10^5 triangles (issue 23 item 7), at a 256 x 256 view: the same runs as the
-# shipped 512 x 512 view at a quarter of the pixels. Map 1024 is every technique's default.
-ARCHITECTURE_IMAGE = 256
+# Family (c) at 10^5 triangles (issue 23 item 7) at map 1024, every technique's default: the
+# shipped 512 x 512 view and a 256 x 256 one (a quarter of the pixels, each texel a quarter of
+# the pixels too, so a bias failure stays as visible).
+ARCHITECTURE_IMAGES = (256, 512)
+ARCHITECTURE_EXCEPTIONS = {(512, "mdsm"): WINDOW}  # leak 1.03 % against sm's 0.009 %
 
 
 @pytest.fixture(scope="module")
 def architecture_runs(gl_context, scene_at):
-    """technique -> (acne_pct, leak_pct) at the defaults on architecture, and the same for pcf
-    with both slope terms at 0 (the control). One frame, one reference."""
+    """(image, technique) -> (acne_pct, leak_pct) at the defaults on architecture, and the same
+    for pcf with slope_bias 0 (the control). One frame and one reference per view."""
     from harness.run import evaluate
 
-    scene = scene_at("architecture", ARCHITECTURE_IMAGE)
     runs = {}
-    for technique, params in [("sm", {}), *((t, {}) for t in FILTERED),
-                              ("pcf, no slope terms", {"slope_bias": 0.0, "normal_offset": 0.0})]:
-        row = evaluate(scene, technique.split(",")[0], params).row
-        runs[technique] = (row["acne_pct"], row["leak_pct"])
+    for image in ARCHITECTURE_IMAGES:
+        scene = scene_at("architecture", image)
+        for technique, params in [("sm", {}), *((t, {}) for t in FILTERED),
+                                  ("pcf, slope_bias 0", {"slope_bias": 0.0})]:
+            row = evaluate(scene, technique.split(",")[0], params).row
+            runs[image, technique] = (row["acne_pct"], row["leak_pct"])
     return runs
 
 
 @pytest.mark.parametrize("technique", FILTERED)
-def test_defaults_hold_on_dense_open_architecture(architecture_runs, technique):
+@pytest.mark.parametrize("image", ARCHITECTURE_IMAGES)
+def test_defaults_hold_on_dense_open_architecture(architecture_runs, image, technique):
     """Issue 23 item 7: on family (c) at 10^5 triangles (open, thin walls, roofs grazing to the
     light) pcf, mdsm and silhouette at their defaults show acne_pct <= 0.1 and leak_pct <= sm's
-    + 0.1, and the scene does show acne when the slope terms are off (pcf, slope_bias and
-    normal_offset 0), so the bar is a test of them. Catches a default that loses the slope
-    term or an offset so large that light leaks past sm's."""
-    acne, leak = architecture_runs[technique]
-    sm_leak = architecture_runs["sm"][1]
-    assert acne <= 0.1 and leak <= sm_leak + 0.1, (acne, leak, sm_leak)
-    assert architecture_runs["pcf, no slope terms"][0] > 1.0
+    + 0.1, except mdsm's window on the 512 view (ARCHITECTURE_EXCEPTIONS, which must keep
+    failing), and the view does show acne without the slope term (pcf, slope_bias 0), so the
+    bar tests it. Catches a default that loses the slope term, or a normal offset so large
+    that light leaks past sm's (pcf with normal_offset 1 on the 512 view: leak 0.23 %)."""
+    acne, leak = architecture_runs[image, technique]
+    sm_leak = architecture_runs[image, "sm"][1]
+    meets = acne <= 0.1 and leak <= sm_leak + 0.1
+    if (image, technique) in ARCHITECTURE_EXCEPTIONS:
+        assert not meets, f"now meets the bar (acne {acne:.3f}, leak {leak:.3f}): drop it"
+    else:
+        assert meets, (acne, leak, sm_leak)
+    assert architecture_runs[image, "pcf, slope_bias 0"][0] > 1.0
 
 
 def without_normal_offset(monkeypatch):
