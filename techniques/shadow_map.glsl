@@ -23,11 +23,14 @@
 // The plane is a guess where the receiver is not planar within the reach of its reads (curved
 // or creased surfaces, a footprint region widened at grazing angles). There the point itself
 // can move before any read: by normal_offset x w x sin(theta), w the texel's world size at the
-// point (its local one in a warped map), theta the angle between normal and light ray, along
-// the normal's side facing the light (the side the reference's shadow ray leaves from). On a
-// plane that clears normal_offset texels of reach at any angle: the point comes
-// normal_offset x w x tan(theta) nearer the light along its ray, as much as the plane rises
-// over that reach; the offset stays within a texel where the slope term grows as the tangent.
+// point (its local one in a warped map; in a cascade, that cascade's; for a point light's cube,
+// the face texel at the point's distance along the face's axis, 2 d / res), theta the angle
+// between normal and light ray, along the normal's side facing the light (the side the
+// reference's shadow ray leaves from). A moved point takes its own cube face (it may cross a
+// face's edge); csm keeps the cascade of the unmoved point. On a plane that clears
+// normal_offset texels of reach at any angle: the point comes normal_offset x w x tan(theta)
+// nearer the light along its ray, as much as the plane rises over that reach; the offset
+// stays within a texel where the slope term grows as the tangent.
 // Its default is 0. Measured with every other parameter at its default (512 x 512 views; maps
 // 256, 1024, 4096; the ten shipped scenes and architecture at 10^5 triangles: 99 pcf, mdsm and
 // silhouette runs), the acne/leak bar of tests/test_fair_bias.py holds on 69 runs at 0, 0.25
@@ -89,45 +92,78 @@ LightSample to_light(vec3 world) {
     return s;
 }
 
-// The point in light space with its receiver plane's depth slope per texel: the Jacobian of
-// (texel, depth) along two tangents of the plane, inverted. Valid for any projective map
-// (orthographic, perspective, warped): depth is affine in world space, the map position
-// projective.
-Receiver receiver(vec3 world, vec3 normal) {
-    choose_face(world);  // the point's face serves every read of its receiver plane
+// d texel / d world (two rows) and the direction light depth grows along, at a point of the
+// current map (for a cube, of the face chosen last).
+struct MapJacobian {
+    vec3 texel_x;
+    vec3 texel_y;
+    vec3 depth_w;
+};
+
+MapJacobian map_jacobian(vec3 world) {
     mat4 m = light_proj * light_view;
     vec4 c = m * vec4(world, 1.0);
     vec3 row_x = vec3(m[0].x, m[1].x, m[2].x);
     vec3 row_y = vec3(m[0].y, m[1].y, m[2].y);
     vec3 row_w = vec3(m[0].w, m[1].w, m[2].w);
-    vec3 texel_x = (row_x - c.x / c.w * row_w) * (0.5 * map_res / c.w);  // d texel.x / d world
-    vec3 texel_y = (row_y - c.y / c.w * row_w) * (0.5 * map_res / c.w);
-    vec3 depth_w = -vec3(light_view[0].z, light_view[1].z, light_view[2].z);
-    vec3 n = normalize(normal);
-    vec3 t1 = normalize(cross(n, abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
-    vec3 t2 = cross(n, t1);
-    // columns: d texel / d t1, d texel / d t2
-    mat2 a = mat2(dot(texel_x, t1), dot(texel_y, t1), dot(texel_x, t2), dot(texel_y, t2));
-    vec2 b = vec2(dot(depth_w, t1), dot(depth_w, t2));
-    float det = determinant(a);
-    // g = b A^-1 = (b adj A) / det; |det| floored so |g| <= MAX_TAN x the texel's world size
-    vec2 scaled = b * mat2(a[1].y, -a[0].y, -a[1].x, a[0].x);
-    float a_sq = dot(texel_x, texel_x), b_sq = dot(texel_y, texel_y), ab = dot(texel_x, texel_y);
-    // the smaller singular value of d texel / d world: 1 / the texel's larger world side
-    float texels_per_world = sqrt(0.5 * (a_sq + b_sq)
-                                  - sqrt(max(0.25 * (a_sq - b_sq) * (a_sq - b_sq) + ab * ab, 0.0)));
-    float floor_det = length(scaled) * texels_per_world / MAX_TAN;
+    MapJacobian j;
+    j.texel_x = (row_x - c.x / c.w * row_w) * (0.5 * map_res / c.w);
+    j.texel_y = (row_y - c.y / c.w * row_w) * (0.5 * map_res / c.w);
+    j.depth_w = -vec3(light_view[0].z, light_view[1].z, light_view[2].z);
+    return j;
+}
+
+// The smaller singular value of d texel / d world: 1 / the texel's larger world side there
+// (a cube face's texel at the point's distance, a cascade's own texel, a warped map's local one).
+float texels_per_world(MapJacobian j) {
+    float a_sq = dot(j.texel_x, j.texel_x), b_sq = dot(j.texel_y, j.texel_y);
+    float ab = dot(j.texel_x, j.texel_y);
+    return sqrt(0.5 * (a_sq + b_sq)
+                - sqrt(max(0.25 * (a_sq - b_sq) * (a_sq - b_sq) + ab * ab, 0.0)));
+}
+
+// The lookup point of normal_offset (see the header): the point moved along its normal's
+// light-facing side by normal_offset x the texel's world size there x sin(light angle).
+vec3 normal_offset_point(vec3 world, vec3 n, MapJacobian j) {
     // the light ray through the point (the map position does not move along it), to the light
-    vec3 to_light_ray = normalize(cross(texel_x, texel_y));
-    if (dot(to_light_ray, depth_w) > 0.0) to_light_ray = -to_light_ray;
+    vec3 to_light_ray = normalize(cross(j.texel_x, j.texel_y));
+    if (dot(to_light_ray, j.depth_w) > 0.0) to_light_ray = -to_light_ray;
     float cos_light = dot(n, to_light_ray);
     float sin_light = sqrt(max(1.0 - cos_light * cos_light, 0.0));
     vec3 lit_side = cos_light < 0.0 ? -n : n;
-    LightSample s = to_light(world + lit_side * (normal_offset * sin_light / texels_per_world));
+    return world + lit_side * (normal_offset * sin_light / texels_per_world(j));
+}
+
+// The point in light space with its receiver plane's depth slope per texel: the Jacobian of
+// (texel, depth) along two tangents of the plane, inverted. Valid for any projective map
+// (orthographic, perspective, warped): depth is affine in world space, the map position
+// projective. With normal_offset the point is first moved (normal_offset_point) and the plane,
+// parallel to the receiver's, is taken there; a point light's moved point takes its own face,
+// so a point by a face's edge moved past it still reads real depths rather than falling off
+// the face (which counts as lit).
+Receiver receiver(vec3 world, vec3 normal) {
+    vec3 n = normalize(normal);
+    choose_face(world);  // the point's face serves every read of its receiver plane
+    MapJacobian j = map_jacobian(world);
+    if (normal_offset > 0.0) {
+        world = normal_offset_point(world, n, j);
+        choose_face(world);
+        j = map_jacobian(world);
+    }
+    LightSample s = to_light(world);
     Receiver r;
     r.texel = s.texel;
     r.depth = s.depth;
     r.in_front = s.in_front;
+    vec3 t1 = normalize(cross(n, abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
+    vec3 t2 = cross(n, t1);
+    // columns: d texel / d t1, d texel / d t2
+    mat2 a = mat2(dot(j.texel_x, t1), dot(j.texel_y, t1), dot(j.texel_x, t2), dot(j.texel_y, t2));
+    vec2 b = vec2(dot(j.depth_w, t1), dot(j.depth_w, t2));
+    float det = determinant(a);
+    // g = b A^-1 = (b adj A) / det; |det| floored so |g| <= MAX_TAN x the texel's world size
+    vec2 scaled = b * mat2(a[1].y, -a[0].y, -a[1].x, a[0].x);
+    float floor_det = length(scaled) * texels_per_world(j) / MAX_TAN;
     r.depth_slope = scaled / ((det < 0.0 ? -1.0 : 1.0) * max(abs(det), max(floor_det, 1e-30)));
     return r;
 }
