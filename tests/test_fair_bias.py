@@ -174,7 +174,19 @@ def test_no_acne_far_from_the_origin(evaluate):
 # shipped 512 x 512 view and a 256 x 256 one (a quarter of the pixels, each texel a quarter of
 # the pixels too, so a bias failure stays as visible).
 ARCHITECTURE_IMAGES = (256, 512)
-ARCHITECTURE_EXCEPTIONS = {(512, "mdsm"): WINDOW}  # leak 1.03 % against sm's 0.009 %
+# mdsm on the 512 view: leak 1.03 % against sm's 0.009 % (1176 pixels: 1061 on the grazing
+# roofs, 93 on walls, 17 on the ground; 813 of them 3 pixels from the reference boundary, just
+# outside the 2-pixel band, 232 at 4, 56 at 5; V mostly 1/18 to 3/18: one to three of the 18
+# depth tests lit). Each is a shadowed point whose kernel reaches a cell whose window maximum
+# (the 2-SM's extra depth, Pagot et al.'s choice) lies behind it, past the occluder's edge:
+# the soft edge reaches the kernel plus the window radius into the shadow, and a texel of a
+# roof grazing to the light spans several pixels. It is the window, not a bias: with the base
+# depth biased for its own texel (no window reach) the leak stays 1.03 % and with slope_bias 0
+# it is still 0.28 % (acne 34 %); it grows with the window (q 4, 9, 16, 25: 0.53, 1.03, 2.48,
+# 3.18 %), vanishes without one (n 1: 0.061 %), and turns to acne with the minimum instead
+# (extra min: acne 0.31 %, leak 0.18 %; n 3, both: 0.31 %, 1.03 %); pcf's footprint region
+# as mdsm's kernel leaves 0.67 %. A faithful 2-SM at this view cannot meet the bar.
+ARCHITECTURE_EXCEPTIONS = {(512, "mdsm"): WINDOW}
 
 
 @pytest.fixture(scope="module")
