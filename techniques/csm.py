@@ -126,6 +126,7 @@ _Params = create_model(
     stabilize=(bool, False),
     bias=(float, Field(0.02, ge=0)),
     slope_bias=(float, Field(1.0, ge=0)),
+    normal_offset=(float, Field(0.0, ge=0)),
 )
 
 
@@ -146,26 +147,31 @@ class CascadedShadowMap(Technique):
     visible depth range). Directional lights only: a spot light has one frustum already.
 
     Bias: ``shadow_map.glsl``'s rule (``bias`` plus ``slope_bias`` times the receiver plane's
-    depth slope per texel times the distance to the texel read), in each cascade's own texels.
+    depth slope per texel times the distance to the texel read, and the point first moved by
+    ``normal_offset`` texels), in each cascade's own texels.
     Columns: ``split_<i>`` the slice bounds (view depths, i = 0..splits) and
     ``cascade_texel_<i>`` each cascade's texel side in world units (orthographic: the same at
     its near end as anywhere). Map ``cascade``: the cascade each pixel used.
 
-    ==============  ================================================  ========  ============
-    Parameter       Meaning                                           Default   Range
-    ==============  ================================================  ========  ============
-    ``res``         each cascade's map width and height, texels       1024      16 .. 8192
-    ``splits``      cascades                                          4         1 .. 4
-    ``lambda``      logarithmic share of the split scheme (0 uniform  0.5       0 .. 1
-                    slices, 1 logarithmic)
-    ``fit``         ``frustum``: near to far, slices of the view      frustum   frustum, sdsm
-                    frustum; ``sdsm``: the visible depths and each
-                    slice's visible receivers (GPU reductions)
-    ``stabilize``   bounding-sphere cascades snapped to whole texels  false     true, false
-    ``bias``        constant depth bias, scene units                  0.02      >= 0
-    ``slope_bias``  times the receiver plane's depth slope x the      1.0       >= 0
-                    distance to the texel read, texels
-    ==============  ================================================  ========  ============
+    =================  ================================================  ========  ============
+    Parameter          Meaning                                           Default   Range
+    =================  ================================================  ========  ============
+    ``res``            each cascade's map width and height, texels       1024      16 .. 8192
+    ``splits``         cascades                                          4         1 .. 4
+    ``lambda``         logarithmic share of the split scheme (0 uniform  0.5       0 .. 1
+                       slices, 1 logarithmic)
+    ``fit``            ``frustum``: near to far, slices of the view      frustum   frustum, sdsm
+                       frustum; ``sdsm``: the visible depths and each
+                       slice's visible receivers (GPU reductions)
+    ``stabilize``      bounding-sphere cascades snapped to whole texels  false     true, false
+    ``bias``           constant depth bias, scene units                  0.02      >= 0
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0       >= 0
+                       distance to the texel read, texels
+    ``normal_offset``  moves the point along its light-facing normal     0.0       >= 0
+                       before the read: this many x the texel's world
+                       size in the pixel's cascade x sin(the light's
+                       angle); the cascade stays the unmoved point's
+    =================  ================================================  ========  ============
     """
 
     name = "csm"
@@ -263,7 +269,8 @@ class CascadedShadowMap(Technique):
                             for c in self.cascades)
             self.shading.set(**uniforms, cascades=len(self.cascades), cascade_res=float(p.res),
                              camera_view=frame.camera.view, bias=p.bias,
-                             slope_bias=p.slope_bias, depth_precision=precision)
+                             slope_bias=p.slope_bias, normal_offset=p.normal_offset,
+                             depth_precision=precision)
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps), fetches_per_px=1,
                             nonfinite=sum(m.nonfinite for m in self.maps),

@@ -23,6 +23,16 @@ WINDOW_SAMPLES = (4, 9, 16, 25)
 KERNEL_SAMPLES = tuple(i * i for i in range(1, 9))  # the square grids pcf accepts
 
 
+def base_channel(p) -> int:
+    """The channel of the selected texel that holds the cell's own (base) depth, as
+    mdsm_select.frag.glsl stores it; -1 where it is not fixed (sort)."""
+    if p.n == 1:
+        return 0
+    if p.select == "sort":
+        return -1
+    return 0 if (p.n == 2 and p.extra == "min") else 1
+
+
 class DepthSelection:
     """The selection pass: a res x res RGBA32F map whose texel holds a cell's n depths, chosen
     from the q = window^2 base-map samples around the cell (mdsm_select.frag.glsl)."""
@@ -86,10 +96,16 @@ class MultipleDepthShadowMap(Technique):
     Bias: every depth read gets ``bias`` (scene units) plus ``slope_bias`` times the receiver
     plane's depth slope per texel times the distance in texels from the point to the texel the
     depth came from (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and Schueler
-    2006). A selected depth may come from any texel of the cell's window, so for n > 1 the
-    distance is to the window's farthest texel: the sample's offset plus the window radius
-    ((sqrt(q) - 1) / 2 texels each way, one more to the right and top for even windows). For
-    n = 1 it is pcf's and sm's term.
+    2006). The cell's own (base) depth comes from the texel read, so it gets that texel's
+    distance, as in pcf and sm; a depth chosen from the window may come from any of its
+    texels, so it gets the distance to the window's farthest texel: the sample's offset plus
+    the window radius ((sqrt(q) - 1) / 2 texels each way, one more to the right and top for
+    even windows). ``sort`` does not keep the base depth in a fixed channel (it replaces its
+    own group's representative), so there every depth gets the window's distance. Giving the
+    base depth the window's reach too (as before) let grazing receivers pass tests of real
+    occluders: on architecture at 10^5 triangles (512 x 512, map 1024) the default's
+    edge_mae 0.131 -> 0.117 and mae 0.059 -> 0.052 with the own reach, acne 0.006 -> 0.009 %;
+    ``extra: min``'s leak 0.36 -> 0.18 %. For n = 1 it is pcf's and sm's term.
 
     Empty map cells hold the clear depth 3e38 (lit); representatives are picked, never averaged,
     so no depth overflows. Extra result columns: ``select_fetches`` (q x res^2, 0 for n = 1),
@@ -109,6 +125,9 @@ class MultipleDepthShadowMap(Technique):
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
                        distance to the farthest texel a depth may come
                        from
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before the samples: this many x the texel's
+                       world size there x sin(the light's angle)
     =================  ================================================  =======  ================
     """
 
@@ -132,6 +151,7 @@ class MultipleDepthShadowMap(Technique):
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
 
         @field_validator("n", "k", "q", mode="wrap")
         @classmethod
@@ -176,7 +196,8 @@ class MultipleDepthShadowMap(Technique):
 
     def prepare(self, frame: Frame) -> None:
         p = self.params
-        self.passes = FilteredShadowMap(frame, p.res, "mdsm_shading.frag.glsl", N_DEPTHS=p.n)
+        self.passes = FilteredShadowMap(frame, p.res, "mdsm_shading.frag.glsl", N_DEPTHS=p.n,
+                                        BASE_CHANNEL=base_channel(p))
         self.selection = (DepthSelection(p.res, p.n, p.q, p.select, p.extra_depth)
                           if p.n > 1 else None)
 
@@ -192,6 +213,7 @@ class MultipleDepthShadowMap(Technique):
         base = self.passes.map
         self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
                                           bias_max=p.bias, slope_bias=p.slope_bias,
+                                          normal_offset=p.normal_offset,
                                           window=self.selection.window if self.selection else (0, 0)),
                           texture=self.selection.texture if self.selection else None)
         q = p.q if self.selection else 0

@@ -4,7 +4,7 @@
 
 layout(location = 0) out float visibility;
 
-float sample_test(vec2 texel, float depth, float bias) {
+float sample_test(vec2 texel, float depth, float bias, float window_bias) {
     return depth_test(texel, depth, bias);
 }
 

@@ -42,23 +42,26 @@ class PercentageCloserFiltering(Technique):
     texels of its neighbours' directions on every side (half the largest region), so no
     sample of a point near a face's edge falls off its face.
 
-    ==============  ===============================================  =========  ===========
-    Parameter       Meaning                                          Default    Range
-    ==============  ===============================================  =========  ===========
-    ``res``         map width and height, texels                     1024       16 .. 8192
-    ``k``           samples per pixel (NumSamples), a square         16         1 .. 64
-    ``sampling``    ``grid`` or ``jitter`` (stratified)              grid
-    ``region``      ``footprint`` (pixel footprint) or ``fixed``     footprint
-    ``res_factor``  footprint: times the footprint (ResFactor);      1.0        (0, 64]
-                    fixed: sub-region side, texels
-    ``min_size``    footprint: smallest region side, texels          1.0        (0, 64]
-                    (MinSize)
-    ``bias_min``    smallest per-sample bias, scene units (Bias0)    0.02       >= 0
-    ``bias_max``    largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
-    ``slope_bias``  times the receiver plane's depth slope x each    1.0        >= 0
-                    sample's distance to its texel, texels
-    ``seed``        seed of the jitter and bias draws                0          >= 0
-    ==============  ===============================================  =========  ===========
+    =================  ===============================================  =========  ===========
+    Parameter          Meaning                                          Default    Range
+    =================  ===============================================  =========  ===========
+    ``res``            map width and height, texels                     1024       16 .. 8192
+    ``k``              samples per pixel (NumSamples), a square         16         1 .. 64
+    ``sampling``       ``grid`` or ``jitter`` (stratified)              grid
+    ``region``         ``footprint`` (pixel footprint) or ``fixed``     footprint
+    ``res_factor``     footprint: times the footprint (ResFactor);      1.0        (0, 64]
+                       fixed: sub-region side, texels
+    ``min_size``       footprint: smallest region side, texels          1.0        (0, 64]
+                       (MinSize)
+    ``bias_min``       smallest per-sample bias, scene units (Bias0)    0.02       >= 0
+    ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
+    ``slope_bias``     times the receiver plane's depth slope x each    1.0        >= 0
+                       sample's distance to its texel, texels
+    ``normal_offset``  moves the point along its light-facing normal    0.0        >= 0
+                       before the samples: this many x the texel's
+                       world size there x sin(the light's angle)
+    ``seed``           seed of the jitter and bias draws                0          >= 0
+    =================  ===============================================  =========  ===========
     """
 
     name = "pcf"
@@ -79,6 +82,7 @@ class PercentageCloserFiltering(Technique):
         bias_min: float = Field(0.02, ge=0)
         bias_max: float = Field(0.04, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
         seed: int = Field(0, ge=0, lt=2**32)
 
         @model_validator(mode="after")
@@ -99,7 +103,7 @@ class PercentageCloserFiltering(Technique):
             grid_n=math.isqrt(p.k), footprint_region=p.region == "footprint",
             res_factor=p.res_factor, min_size=p.min_size, spacing=p.res_factor,
             jitter=p.sampling == "jitter", seed=p.seed, bias_min=p.bias_min,
-            bias_max=p.bias_max, slope_bias=p.slope_bias))
+            bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=p.k,
                             nonfinite=self.passes.map.nonfinite)
 

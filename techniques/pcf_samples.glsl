@@ -9,9 +9,11 @@
 // - fixed region: grid_n x grid_n sub-regions of side `spacing` texels, sampled at their
 //   centres or jittered inside them.
 // A constant bias is drawn per sample from [bias_min, bias_max] (the paper's Figure 4), plus
-// the slope term of shadow_map.glsl for the texel the sample reads (to the farthest texel of
-// [window_low, window_high] where a map texel holds depths chosen from a window).
-// The including shader defines sample_test(): the per-sample outcome in [0, 1], 1 = lit.
+// the slope term of shadow_map.glsl for the texel the sample reads (and, for depths a map texel
+// holds chosen from a window, to the farthest texel of [window_low, window_high]).
+// The including shader defines sample_test(texel, depth, bias, window_bias): the per-sample
+// outcome in [0, 1], 1 = lit; `bias` has the slope term of the texel read itself, `window_bias`
+// that of the farthest texel of its window (equal where the window is (0, 0)).
 #include "gbuffer_read.glsl"
 #include "shadow_map.glsl"
 
@@ -35,7 +37,7 @@ uniform vec3 camera_ray_dy;
 // A pixel seeing a plane edge-on covers an unbounded strip of the map; its region stops here.
 const float MAX_FOOTPRINT = 64.0;
 
-float sample_test(vec2 texel, float depth, float bias);
+float sample_test(vec2 texel, float depth, float bias, float window_bias);
 
 uint pcg(uint v) {
     uint state = v * 747796405u + 2891336453u;
@@ -86,9 +88,11 @@ float filtered_visibility() {
                                 : vec2(0.5);
             vec2 offset = ((vec2(i, j) + place) / float(grid_n) - 0.5) * side * stretch;
             vec2 at = r.texel + offset;
-            float bias = bias_min + (bias_max - bias_min) * random01(pixel, index, 2u)
-                         + receiver_bias(r, floor(at) + 0.5, window_low, window_high);
-            lit += sample_test(at, r.depth, bias);
+            float constant = bias_min + (bias_max - bias_min) * random01(pixel, index, 2u);
+            vec2 centre = floor(at) + 0.5;
+            lit += sample_test(at, r.depth,
+                               constant + receiver_bias(r, centre, vec2(0.0), vec2(0.0)),
+                               constant + receiver_bias(r, centre, window_low, window_high));
         }
     }
     return lit / float(grid_n * grid_n);

@@ -87,6 +87,10 @@ class SilhouetteMap(Technique):
     ``bias``            constant depth bias, scene units                0.02     >= 0
     ``slope_bias``      times the receiver plane's depth slope x each   1.0      >= 0
                         corner's distance, texels
+    ``normal_offset``   moves the shaded point along its light-facing   0.0      >= 0
+                        normal before its tests, by this many x the
+                        texel's world size there x the sine of the
+                        light's angle
     ``center_points``   debug: store every silhouette point at its      false
                         texel's centre (the paper's degenerate case,
                         equal to a shadow map on the offset depth map)
@@ -106,6 +110,7 @@ class SilhouetteMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
         center_points: bool = False
 
     def prepare(self, frame: Frame) -> None:
@@ -162,7 +167,8 @@ class SilhouetteMap(Technique):
         program.use()
         unit = frame.bind_gbuffer(program)
         program.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
-        program.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1), bias=p.bias)
+        program.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1), bias=p.bias,
+                    normal_offset=p.normal_offset)
         frame.draw_fullscreen(covered_only=True)  # V = 1 and nothing counted where no surface
 
     def _count_diagnostics(self, frame: Frame) -> None:

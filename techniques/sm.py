@@ -22,14 +22,17 @@ class ShadowMap(Technique):
     times that distance (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and
     Schueler 2006), the rule every map technique here shares.
 
-    ==============  ================================================  =======  ===========
-    Parameter       Meaning                                           Default  Range
-    ==============  ================================================  =======  ===========
-    ``res``         map (a cube face's) width and height, texels      1024     16 .. 8192
-    ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  times the receiver plane's depth slope x the      1.0      >= 0
-                    distance to the texel read, texels
-    ==============  ================================================  =======  ===========
+    =================  ================================================  =======  ===========
+    Parameter          Meaning                                           Default  Range
+    =================  ================================================  =======  ===========
+    ``res``            map (a cube face's) width and height, texels      1024     16 .. 8192
+    ``bias``           constant depth bias, scene units                  0.02     >= 0
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+                       distance to the texel read, texels
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before the read: this many x the texel's world
+                       size there x the sine of the light's angle
+    =================  ================================================  =======  ===========
     """
 
     name = "sm"
@@ -46,6 +49,7 @@ class ShadowMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
 
     def prepare(self, frame: Frame) -> None:
         self.passes = MapShading(frame, self.params.res, "sm_shading.frag.glsl")
@@ -55,7 +59,7 @@ class ShadowMap(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
-        self.passes.render(frame, p.slope_bias, bias=p.bias)
+        self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset)
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
                             nonfinite=self.passes.map.nonfinite)
 

@@ -56,16 +56,19 @@ __all__ = [
 
 
 PARAMETER_TABLE = """
-    ==============  ================================================  =======  ===========
-    Parameter       Meaning                                           Default  Range
-    ==============  ================================================  =======  ===========
-    ``res``         map width and height, texels                      1024     16 .. 8192
-    ``bias``        constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``  times the receiver plane's depth slope x each     1.0      >= 0
-                    read's distance, in the warped map's texels
-                    (shadow_map.glsl)
-    ``k``           PCF samples per pixel, a square grid of texels    1        1 .. 49
-    ==============  ================================================  =======  ===========
+    =================  ================================================  =======  ===========
+    Parameter          Meaning                                           Default  Range
+    =================  ================================================  =======  ===========
+    ``res``            map width and height, texels                      1024     16 .. 8192
+    ``bias``           constant depth bias, scene units                  0.02     >= 0
+    ``slope_bias``     times the receiver plane's depth slope x each     1.0      >= 0
+                       read's distance, in the warped map's texels
+                       (shadow_map.glsl)
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before its reads: this many x the warped map's
+                       texel's world size there x sin(the light's angle)
+    ``k``              PCF samples per pixel, a square grid of texels    1        1 .. 49
+    =================  ================================================  =======  ===========
     """
 
 
@@ -73,6 +76,7 @@ class WarpParams(TechniqueParams):
     res: int = Field(1024, ge=16, le=8192)
     bias: float = Field(0.02, ge=0)
     slope_bias: float = Field(1.0, ge=0)
+    normal_offset: float = Field(0.0, ge=0)
     k: SquareInt = Field(1, le=49)
 
 
@@ -148,7 +152,7 @@ class WarpedShadowMap(Technique):
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
             self.shading.set(**self.map.lookup_uniforms(unit, p.slope_bias, frame),
-                             grid_n=math.isqrt(p.k), bias=p.bias)
+                             grid_n=math.isqrt(p.k), bias=p.bias, normal_offset=p.normal_offset)
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         warnings = []
         if self.columns["outside_pct"] > 0:

@@ -4,6 +4,9 @@ the pixel's footprint, and acne and leaks are measured apart (harness.metrics)."
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -165,3 +168,240 @@ def test_no_acne_far_from_the_origin(evaluate):
     for technique in ("sm", "pcf", "mdsm", "silhouette", "psm", "lispsm", "gmnpr"):
         row = evaluate(scene, technique).row
         assert row["acne_pct"] <= 0.1, (technique, row["acne_pct"])
+
+
+# Family (c) at 10^5 triangles (issue 23 item 7) at map 1024, every technique's default: the
+# shipped 512 x 512 view and a 256 x 256 one (a quarter of the pixels, each texel a quarter of
+# the pixels too, so a bias failure stays as visible).
+ARCHITECTURE_IMAGES = (256, 512)
+# mdsm on the 512 view: leak 1.03 % against sm's 0.009 % (1176 pixels: 1061 on the grazing
+# roofs, 93 on walls, 17 on the ground; 813 of them 3 pixels from the reference boundary, just
+# outside the 2-pixel band, 232 at 4, 56 at 5; V mostly 1/18 to 3/18: one to three of the 18
+# depth tests lit). Each is a shadowed point whose kernel reaches a cell whose window maximum
+# (the 2-SM's extra depth, Pagot et al.'s choice) lies behind it, past the occluder's edge:
+# the soft edge reaches the kernel plus the window radius into the shadow, and a texel of a
+# roof grazing to the light spans several pixels. It is the window, not a bias: with the base
+# depth biased for its own texel (no window reach) the leak stays 1.03 % and with slope_bias 0
+# it is still 0.28 % (acne 34 %); it grows with the window (q 4, 9, 16, 25: 0.53, 1.03, 2.48,
+# 3.18 %), vanishes without one (n 1: 0.061 %), and turns to acne with the minimum instead
+# (extra min: acne 0.31 %, leak 0.18 %; n 3, both: 0.31 %, 1.03 %); pcf's footprint region
+# as mdsm's kernel leaves 0.67 %. A faithful 2-SM at this view cannot meet the bar.
+ARCHITECTURE_EXCEPTIONS = {(512, "mdsm"): WINDOW}
+
+
+@pytest.fixture(scope="module")
+def architecture_runs(gl_context, scene_at):
+    """(image, technique) -> (acne_pct, leak_pct) at the defaults on architecture, and the same
+    for pcf with slope_bias 0 (the control). One frame and one reference per view."""
+    from harness.run import evaluate
+
+    runs = {}
+    for image in ARCHITECTURE_IMAGES:
+        scene = scene_at("architecture", image)
+        for technique, params in [("sm", {}), *((t, {}) for t in FILTERED),
+                                  ("pcf, slope_bias 0", {"slope_bias": 0.0})]:
+            row = evaluate(scene, technique.split(",")[0], params).row
+            runs[image, technique] = (row["acne_pct"], row["leak_pct"])
+    return runs
+
+
+@pytest.mark.parametrize("technique", FILTERED)
+@pytest.mark.parametrize("image", ARCHITECTURE_IMAGES)
+def test_defaults_hold_on_dense_open_architecture(architecture_runs, image, technique):
+    """Issue 23 item 7: on family (c) at 10^5 triangles (open, thin walls, roofs grazing to the
+    light) pcf, mdsm and silhouette at their defaults show acne_pct <= 0.1 and leak_pct <= sm's
+    + 0.1, except mdsm's window on the 512 view (ARCHITECTURE_EXCEPTIONS, which must keep
+    failing), and the view does show acne without the slope term (pcf, slope_bias 0), so the
+    bar tests it. Catches a default that loses the slope term, or a normal offset so large
+    that light leaks past sm's (pcf with normal_offset 1 on the 512 view: leak 0.23 %)."""
+    acne, leak = architecture_runs[image, technique]
+    sm_leak = architecture_runs[image, "sm"][1]
+    meets = acne <= 0.1 and leak <= sm_leak + 0.1
+    if (image, technique) in ARCHITECTURE_EXCEPTIONS:
+        assert not meets, f"now meets the bar (acne {acne:.3f}, leak {leak:.3f}): drop it"
+    else:
+        assert meets, (acne, leak, sm_leak)
+    assert architecture_runs[image, "pcf, slope_bias 0"][0] > 1.0
+
+
+NORMAL_OFFSET_BLOCK = ("    if (normal_offset > 0.0) {\n"
+                       "        world = normal_offset_point(world, n, j);\n"
+                       "        choose_face(world);\n"
+                       "        j = map_jacobian(world);\n"
+                       "    }\n")
+
+
+def patch_shadow_map(monkeypatch, old: str, new: str):
+    """Make every shader include a shadow_map.glsl with ``old`` (found once) replaced by
+    ``new``."""
+    from harness.gl import shaders
+
+    resolve = shaders._resolve
+    techniques = Path(__file__).resolve().parent.parent / "techniques"
+    source = (techniques / "shadow_map.glsl").read_text()
+    assert source.count(old) == 1
+    copy = Path(tempfile.mkdtemp()) / "shadow_map.glsl"
+    copy.write_text(source.replace(old, new))
+
+    def patched(name, here):
+        # the copy's own includes (cube_faces.glsl) still come from techniques/
+        path = resolve(name, techniques if here == copy.parent else here)
+        return copy if path.name == "shadow_map.glsl" else path
+
+    monkeypatch.setattr(shaders, "_resolve", patched)
+
+
+HARD_CASES = Path(__file__).resolve().parent.parent / "experiments" / "hard_cases" / "scenes.yaml"
+
+
+def hard_case(name: str):
+    from harness import config
+    from harness.scene import build_scene
+
+    return build_scene(name, config.load_scenes(HARD_CASES)[name], HARD_CASES)
+
+
+@pytest.mark.parametrize("scene_name, technique", [
+    *(("castle", t) for t in ("sm", *FILTERED, "csm", "lispsm")),
+    ("hard_point_seam", "sm"), ("hard_point_seam", "pcf")])
+def test_normal_offset_zero_is_the_shader_without_the_term(scene_at, evaluate, monkeypatch,
+                                                           scene_name, technique):
+    """normal_offset 0 gives V bit for bit equal to shadow_map.glsl without the term (the
+    point not moved at all), on castle (walls, towers: every receiver orientation; csm's
+    cascades, a warp) and on a point light's cube (hard_point_seam) at map 256, and so does
+    the term's block run at 0 rather than skipped by its guard: the move is exactly 0, the
+    face and the Jacobian re-taken at the same point are the same. Catches a lift not
+    proportional to normal_offset (seen failing: (normal_offset + 0.01) x the texel, on 7 of
+    these 8), or a 0 x inf (NaN) where the texel's world size degenerates. (Also checked once
+    by hand against main's shadow_map.glsl before the term, 7504185: equal on all of these and
+    on psm, gmnpr and hard_point_ring, with the guard and without.)"""
+    scene = (scene_at(scene_name, 128) if scene_name == "castle"
+             else hard_case(scene_name).with_resolution(128, 128))
+    shipped = evaluate(scene, technique, {"res": 256, "normal_offset": 0.0}).visibility
+    with monkeypatch.context() as patch:
+        patch_shadow_map(patch, NORMAL_OFFSET_BLOCK, "")
+        plain = evaluate(scene, technique, {"res": 256}).visibility
+    with monkeypatch.context() as patch:  # the block run at 0 too, not skipped by its guard
+        patch_shadow_map(patch, "if (normal_offset > 0.0) {", "if (true) {")
+        unguarded = evaluate(scene, technique, {"res": 256, "normal_offset": 0.0}).visibility
+    assert np.array_equal(shipped, plain)
+    assert np.array_equal(unguarded, plain)
+    offset = evaluate(scene, technique, {"res": 256, "normal_offset": 4.0}).visibility
+    assert not np.array_equal(offset, plain)  # the block is the one that moves the point
+
+
+def slab_visibility(points: np.ndarray, low, high, to_light) -> np.ndarray:
+    """1 where the ray from each point toward the light misses the box [low, high], else 0
+    (the slab test); ``to_light`` is (d, end): the ray is points + t d, 0 < t < end."""
+    d, end = to_light
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (np.asarray(low) - points) / d, (np.asarray(high) - points) / d
+    t_in = np.nanmax(np.minimum(t1, t2), axis=-1)
+    t_out = np.nanmin(np.maximum(t1, t2), axis=-1)
+    return np.where((t_in < t_out) & (t_out > 1e-4) & (t_in < end), 0.0, 1.0)
+
+
+def lifted_mismatch(e, w, offset, low, high, light_position=None, direction=None):
+    """Floor pixels (outside the predicted shadow's edge band) where V disagrees with the slab
+    test of the floor points lifted by offset x w x sin(theta) along +z, w per pixel; and how
+    many of them the predicted shadow holds."""
+    from harness import metrics
+
+    position = e.frame_arrays.position.astype(np.float64)
+    normal = e.frame_arrays.normal.astype(np.float64)
+    floor = e.mask & (normal[..., 2] > 0.999) & (np.abs(position[..., 2]) < 1e-3)
+    if light_position is not None:
+        ray = np.asarray(light_position, float) - position
+        to_light = (ray, 1.0)
+    else:
+        ray = -np.broadcast_to(np.asarray(direction, float), position.shape)
+        to_light = (ray, np.inf)
+    sin = np.sqrt(np.clip(1 - (ray[..., 2] / np.linalg.norm(ray, axis=-1)) ** 2, 0, 1))
+    lifted = position + (offset * w * sin)[..., None] * np.array([0.0, 0.0, 1.0])
+    if light_position is not None:
+        to_light = (np.asarray(light_position, float) - lifted, 1.0)
+    predicted = slab_visibility(lifted, low, high, to_light)
+    compared = floor & ~metrics.edge_band(predicted, mask=floor)
+    return (int((compared & (np.abs(e.visibility - predicted) > 0.5)).sum()),
+            int((compared & (predicted == 0)).sum()))
+
+
+@pytest.mark.parametrize("technique", ["sm", "pcf"])
+def test_normal_offset_on_a_point_light_uses_the_face_texel_at_the_point(evaluate, technique):
+    """A point light (hard_point_seam: a bar whose floor shadow crosses from the downward cube
+    face into the sideways one): with normal_offset 32 at map 256 every floor pixel outside
+    the edge band is the slab test of its point lifted by 32 x w x sin(theta), w = 2 d / res
+    the face texel's side at d, the point's distance along its face's axis (measured: 0
+    pixels differ). The lift is real (the unmoved prediction differs on 780-800 pixels) and
+    the axis distance the right one (the straight-line distance differs on 12-15). Catches
+    the texel size of the wrong distance, the offset off on the cube path, and (sm, seen
+    failing: 45 pixels leak by the seam) the moved point kept in the face of the unmoved one,
+    falling off its edge."""
+    scene = hard_case("hard_point_seam").with_resolution(192, 192)
+    light = np.asarray(scene.light.position, float)
+    low = np.array([1.5, 0.45, 1.0]) - np.array([3.0, 0.3, 0.05]) / 2  # the bar
+    high = low + np.array([3.0, 0.3, 0.05])
+    res, offset = 256, 32.0
+    e = evaluate(scene, technique, {"res": res, "normal_offset": offset})
+    position = e.frame_arrays.position.astype(np.float64)
+    axis_distance = np.abs(position - light).max(axis=-1)
+    wrong, shadowed = lifted_mismatch(e, 2 * axis_distance / res, offset, low, high, light)
+    assert shadowed > 300 and wrong <= 2, (wrong, shadowed)
+    unmoved, _ = lifted_mismatch(e, 0 * axis_distance, offset, low, high, light)
+    assert unmoved > 300
+
+
+def test_normal_offset_in_cascades_uses_the_cascade_texel(evaluate, scene_at):
+    """csm on box_plane at map 256 with normal_offset 32: every floor pixel outside the edge
+    band is the slab test of its point lifted by 32 x w x sin(theta), w the texel side of the
+    cascade that pixel used (column cascade_texel_<i>, map ``cascade``), at 4 and at 2 splits
+    (the shadow's cascade has texels of 0.078 and 0.163 units: 414 and 318 shadowed pixels
+    predicted; 0 differ). Catches the offset not reaching csm's shader (123 and 376 pixels
+    differ) or the texel of another cascade (the last one's: no shadow predicted at all)."""
+    scene = scene_at("box_plane", 256)
+    low, high = np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 2.0])  # the box
+    for splits in (4, 2):
+        e = evaluate(scene, "csm", {"res": 256, "splits": splits, "normal_offset": 32.0})
+        texel = np.array([e.row[f"cascade_texel_{i}"] for i in range(splits)])
+        cascade = np.nan_to_num(e.arrays["map_cascade"]).astype(int)
+        wrong, shadowed = lifted_mismatch(e, texel[cascade], 32.0, low, high,
+                                          direction=scene.light.direction)
+        assert shadowed > 250 and wrong <= 2, (splits, wrong, shadowed)
+        unmoved, _ = lifted_mismatch(e, 0 * texel[cascade], 32.0, low, high,
+                                     direction=scene.light.direction)
+        assert unmoved > 100, (splits, unmoved)
+
+
+def shadow_centroid(e) -> np.ndarray:
+    """World xy centroid of the shadowed ground pixels (V < 0.5 on the plane z = 0)."""
+    position, normal = e.frame_arrays.position, e.frame_arrays.normal
+    ground = e.mask & (normal[..., 2] > 0.999) & (np.abs(position[..., 2]) < 1e-3)
+    shadowed = ground & (e.visibility < 0.5)
+    assert shadowed.sum() > 500
+    return position[shadowed][:, :2].mean(axis=0)
+
+
+def test_normal_offset_scales_with_the_texel_world_size(scene_at, evaluate):
+    """On box_plane (a floating box over the plane z = 0, directional light d) sm's lookup
+    point on the ground rises by normal_offset x w x sin(theta), w the map texel's world side
+    (from the light frustum: 2 max(xmag, ymag) / res) and theta the light's angle from the
+    normal; the shadow it sees is the ground shadow moved by that rise x |d_xy| / |d_z| toward
+    the light. The measured shift of the shadow's centroid matches that within 10 % at maps
+    256 and 512, so doubling res halves the world offset. Catches an offset in map texels
+    rather than world units, the world size of the wrong axis, or a missing sine."""
+    from harness.transforms import fit_light
+
+    scene = scene_at("box_plane", 256)
+    d = np.asarray(scene.light.direction, float)
+    d /= np.linalg.norm(d)
+    sin_theta = np.linalg.norm(d[:2])
+    offset = 32.0
+    for res in (256, 512):
+        proj = fit_light(scene, res).proj
+        texel = 2.0 / min(proj[0, 0], proj[1, 1]) / res
+        rise = offset * texel * sin_theta
+        expected = -rise * d[:2] / abs(d[2])
+        shift = (shadow_centroid(evaluate(scene, "sm", {"res": res, "normal_offset": offset}))
+                 - shadow_centroid(evaluate(scene, "sm", {"res": res, "normal_offset": 0.0})))
+        assert np.linalg.norm(shift - expected) < 0.1 * np.linalg.norm(expected), (res, shift,
+                                                                                   expected)
