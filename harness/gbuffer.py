@@ -11,7 +11,6 @@ import numpy as np
 from OpenGL import GL
 
 from .gl.framebuffer import Framebuffer
-from .gl.geometry import FACE_ATTRIBUTES_BINDING
 from .gl.shaders import HARNESS_GLSL, Program
 
 
@@ -29,8 +28,7 @@ class GBuffer:
     def __init__(self, width: int, height: int):
         self.fbo = Framebuffer(width, height, (GL.GL_RGBA32F, GL.GL_RGBA32F), depth=True)
         self.program = Program(HARNESS_GLSL / "gbuffer.vert.glsl",
-                               HARNESS_GLSL / "gbuffer.frag.glsl",
-                               {"FACE_ATTRIBUTES_BINDING": FACE_ATTRIBUTES_BINDING})
+                               HARNESS_GLSL / "gbuffer.frag.glsl")
 
     @property
     def position_texture(self):
@@ -52,8 +50,8 @@ class GBuffer:
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDisable(GL.GL_CULL_FACE)
-        self.program.use().set(view_proj=view_proj)
-        geometry.bind_face_attributes()
+        self.program.use().set(view_proj=view_proj,
+                               face_attributes=geometry.bind_face_attributes(0))
         geometry.draw()
 
     def read(self) -> GBufferArrays:

@@ -36,8 +36,8 @@ class UnsharedScene:
     def __init__(self, scene):
         self.array = unrolled(scene)
 
-    def bind_face_attributes(self):
-        pass
+    def bind_face_attributes(self, unit):
+        return unit
 
     def draw(self):
         self.array.draw()

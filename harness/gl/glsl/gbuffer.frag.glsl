@@ -1,13 +1,10 @@
 // The flat normal and albedo are per face (harness/gl/geometry.py SceneMesh): the face is the
-// primitive this fragment belongs to, its index in the draw. Defines from Python:
-// FACE_ATTRIBUTES_BINDING.
+// primitive this fragment belongs to, its index in the draw.
 in vec3 world_position;
-layout(std430, binding = FACE_ATTRIBUTES_BINDING) readonly buffer FaceAttributes {
-    vec4 faces[];  // xyz: flat normal, w: albedo
-};
+uniform samplerBuffer face_attributes;  // xyz: flat normal, w: albedo
 layout(location = 0) out vec4 out_position;  // w = 1 where covered
 layout(location = 1) out vec4 out_normal;    // w = albedo
 void main() {
     out_position = vec4(world_position, 1.0);
-    out_normal = faces[gl_PrimitiveID];
+    out_normal = texelFetch(face_attributes, gl_PrimitiveID);
 }
