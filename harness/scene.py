@@ -302,9 +302,31 @@ def build_scene(name: str, scene: cfg.Scene, source: Path | None = None) -> Buil
 
 
 def load_scene(name: str, scene_file: str | Path = "scenes.yaml") -> BuiltScene:
+    """The scene ``name`` of ``scene_file``; ``family@size`` (``architecture@1e6``) is a family
+    scene at another size, as an experiment's ``triangles`` makes it (the same key)."""
+    base, at, size = name.partition("@")
     scenes = cfg.load_scenes(scene_file)
-    if name not in scenes:
+    if base not in scenes:
         raise cfg.ConfigError(
-            f"{scene_file}: no scene named {name!r}; it has {', '.join(sorted(scenes))}"
+            f"{scene_file}: no scene named {base!r}; it has {', '.join(sorted(scenes))}"
         )
-    return build_scene(name, scenes[name], Path(scene_file))
+    scene = scenes[base]
+    if at:
+        if scene.family is None:
+            raise cfg.ConfigError(f"{scene_file}: scene {base!r} has no family, so no "
+                                  f"{name!r}: only family scenes take a size")
+        try:
+            triangles = int(float(size))
+            if triangles != float(size) or triangles < 1:
+                raise ValueError
+        except ValueError:
+            raise cfg.ConfigError(f"{name!r}: the size after @ must be a whole number of "
+                                  f"triangles such as 1e5, got {size!r}") from None
+        if triangles > cfg.DEFAULT_TRIANGLE_BUDGET:
+            raise cfg.ConfigError(f"{name!r}: {triangles:,} triangles, more than the budget of "
+                                  f"{cfg.DEFAULT_TRIANGLE_BUDGET:,}")
+        try:
+            scene = scene.at_triangles(triangles)
+        except ValueError as e:
+            raise cfg.ConfigError(f"{name!r}: {e}") from None
+    return build_scene(name, scene, Path(scene_file))

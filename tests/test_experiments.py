@@ -66,6 +66,19 @@ BAD = [
      "techniques.mdsm.curve.n: mdsm.(parameters): select=minmax allows n in [1, 2, 3]"),
     ("techniques: {sm: {curve: true, product: {res: [256]}}}\n",
      "techniques.sm.curve: goes with set only, not with product or zip"),
+    # per-scene settings: the scene, the technique and the grid are checked like the rest
+    ("techniques: curves\nper_scene:\n  nowhere: {frames: 3}\n",
+     "exp.yaml:3: per_scene.nowhere: no scene 'nowhere' in the scene file"),
+    ("techniques: curves\nper_scene:\n  castle: {frames: 0}\n",
+     "per_scene.castle.frames: Input should be greater than or equal to 1"),
+    ("techniques: curves\nper_scene:\n  castle: {rounds: 3}\n",
+     "per_scene.castle.rounds: unknown key"),
+    ("techniques: curves\nper_scene:\n  castle:\n    techniques: {nosuch: {}}\n",
+     "exp.yaml:4: per_scene.castle.techniques.nosuch: unknown technique"),
+    ("techniques: curves\nper_scene:\n  castle:\n    techniques: {sm: {curve: {bias: [1]}}}\n",
+     "exp.yaml:4: per_scene.castle.techniques.sm.curve.bias: sm has no quality knob 'bias'"),
+    ("techniques: curves\nper_scene:\n  castle:\n    techniques: {sm: {prodcut: {}}}\n",
+     "exp.yaml:4: per_scene.castle.techniques.sm.prodcut: unknown key"),
 ]
 
 
@@ -155,6 +168,32 @@ def test_curves_walk_one_knob_at_a_time_from_the_defaults(tmp_path):
     assert sorted((r.params["res"], r.params["n"], r.params["k"]) for r in chosen
                   if r.technique == "mdsm") == [(512, 1, 9), (512, 2, 1), (512, 2, 4)]
     assert sorted(r.params["res"] for r in chosen if r.technique == "sm") == [256, 1024]
+
+
+def test_per_scene_settings_replace_frames_warmup_and_named_techniques_grids(tmp_path):
+    """``per_scene:`` gives a scene (every size of a family, or one name@size) its own frames,
+    warm-up and grids for the techniques it names; other scenes and techniques keep the
+    experiment's, and the command line's --frames is every scene's. Catches: the settings
+    leaking into other scenes, a named technique's grid added to the experiment's instead of
+    replacing it, a sized entry losing to its family's, --frames ignored for the scene."""
+    text = ("scenes: [castle, architecture]\ntriangles: [1e3, 1e4]\nframes: 9\nwarmup: 2\n"
+            "techniques: {sm: {curve: {res: [256, 512]}}, sv: {}}\nper_scene:\n"
+            "  architecture: {frames: 3, warmup: 1, techniques: {sm: {set: {res: 1024}}}}\n"
+            "  architecture@1e4: {frames: 4}\n")
+
+    def plan(**timing):
+        return runner.plan_runs(experiment_path=str(_write(tmp_path, text)),
+                                scene_file=str(SCENE_FILE), scenes=None, techniques=None,
+                                overrides={}, timing=timing).runs
+
+    runs = {(r.scene, r.technique, r.params.get("res"), r.frames, r.warmup) for r in plan()}
+    assert runs == {("castle", "sm", 256, 9, 2), ("castle", "sm", 512, 9, 2),
+                    ("castle", "sv", None, 9, 2),
+                    ("architecture@1e3", "sm", 1024, 3, 1), ("architecture@1e3", "sv", None, 3, 1),
+                    ("architecture@1e4", "sv", None, 4, 2)} | {
+                       ("architecture@1e4", "sm", res, 4, 2) for res in (256, 512)}
+    assert {(r.scene, r.frames) for r in plan(frames=2)} == {
+        ("castle", 2), ("architecture@1e3", 2), ("architecture@1e4", 2)}
 
 
 def test_grid_expands_product_times_zip_with_set_fixed():

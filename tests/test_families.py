@@ -169,6 +169,29 @@ def test_a_sweep_makes_one_scene_per_size_with_its_own_runs(tmp_path):
     assert list(only.scenes) == ["forest@1e4"]
 
 
+def test_load_scene_takes_a_family_at_a_size_as_a_sweep_names_it(tmp_path):
+    """``load_scene("forest@1e4")`` (the benchmarks' way to a scale scene) is the scene an
+    experiment's ``triangles`` makes, the same key and so the same references; a size on a
+    scene without a family, a size that is no whole number or one over the budget is a
+    ConfigError. Catches a name@size built at the declared size, or under another key."""
+    from harness.run.plan import plan_runs
+    from harness.scene import load_scene
+
+    box = {"resolution": [32, 32], "camera": CAMERA,
+           "light": {"type": "directional", "direction": [-0.3, 0.2, -1]}, "objects": [BOX]}
+    path = _experiment(tmp_path, {"forest": _family_scene(), "box": box}, triangles=["1e4"])
+    scene_file = path.parent / "scenes.yaml"
+    planned = plan_runs(experiment_path=str(path), scene_file="unused", scenes=None,
+                        techniques=None, overrides={}).scenes["forest@1e4"]
+    loaded = load_scene("forest@1e4", scene_file)
+    assert loaded.name == "forest@1e4" and loaded.key == planned.key
+    assert loaded.counts["triangles"] == 9_992
+    for name, message in [("box@1e4", "has no family"), ("forest@lots", "whole number"),
+                          ("forest@2e6", "more than the budget"), ("forest@5e2", "at least")]:
+        with pytest.raises(config.ConfigError, match=message):
+            load_scene(name, scene_file)
+
+
 BAD_SCENES = {
     "unknown kind": (_family_scene(kind="city"), "scenes.bad.family"),
     "unknown parameter": (_family_scene(density=2), "scenes.bad.family.density"),

@@ -9,8 +9,8 @@ Unknown keys are errors, never silently ignored; so are a key given twice in one
 are in :mod:`harness.config.limits`.
 """
 
-from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, load_experiment,
-                                with_timing)
+from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, SceneSettings,
+                                load_experiment, with_timing)
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV, NAME_PATTERN
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
 from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule,
@@ -29,7 +29,8 @@ __all__ = [
     "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",
     "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "MeshParts", "Motion", "NAME_PATTERN",
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
-    "SceneFile", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt", "Strict", "TriangleCount", "Vec3",
+    "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
+    "Strict", "TriangleCount", "Vec3",
     "cache_root", "check_name", "check_resolution", "format_validation_error", "key_error",
     "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path",
     "square_number", "with_timing",

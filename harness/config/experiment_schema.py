@@ -80,6 +80,25 @@ class ReferenceSettings(Strict):
     seed: int = Field(0, ge=0)
 
 
+class SceneSettings(Strict):
+    """What one scene runs differently from the rest of its experiment (``per_scene:``): its
+    measured frames and warm-up, and grids that replace the experiment's for the techniques it
+    names (the others keep theirs). For scenes whose frames cost seconds, such as the 10^5
+    triangle families in ``make bench``: fewer frames, or a shorter curve, rather than no scene."""
+
+    frames: int | None = Field(None, ge=1, le=1000)
+    warmup: int | None = Field(None, ge=0, le=1000)
+    techniques: dict[str, Union[Grid, list[Grid]]] = {}
+
+    @field_validator("techniques")
+    @classmethod
+    def _grids(cls, v):
+        for name, grids in v.items():
+            if isinstance(grids, list) and not grids:
+                raise ValueError(f"{name}: empty list of grids")
+        return v
+
+
 class Experiment(Strict):
     scene_file: str | None = None  # relative to the experiment file; default: --scene-file
     scenes: Union[Literal["all"], list[str]] = "all"
@@ -100,6 +119,8 @@ class Experiment(Strict):
     reference: ReferenceSettings = ReferenceSettings()
     # a typo in a grid (10,000 values for 10) is refused before hours of work, not run
     max_runs: int = Field(DEFAULT_MAX_RUNS, ge=1)
+    # scene name (a declared name: every size of a family; or name@size) -> its own settings
+    per_scene: dict[str, SceneSettings] = {}
 
     @field_validator("scenes")
     @classmethod
@@ -142,8 +163,12 @@ def with_timing(exp: Experiment, **options) -> Experiment:
     given = {k: v for k, v in options.items() if v is not None}
     if not given:
         return exp
+    data = {**exp.model_dump(), **given}
+    # the command line's frames and warm-up are every scene's, per_scene ones included
+    data["per_scene"] = {name: {k: v for k, v in settings.items() if k not in given}
+                         for name, settings in data["per_scene"].items()}
     try:
-        return Experiment.model_validate({**exp.model_dump(), **given})
+        return Experiment.model_validate(data)
     except ValidationError as e:
         first = e.errors()[0]
         option = str(first["loc"][0])
@@ -167,6 +192,15 @@ def load_experiment(path: str | Path) -> tuple[Experiment, object]:
         # each grid on its own, so an error names techniques.<name>... rather than the union
         data = {**data, "techniques": {name: _grids(path, node, name, grids)
                                        for name, grids in techniques.items()}}
+    per_scene = data.get("per_scene")
+    if isinstance(per_scene, dict):
+        data = {**data, "per_scene": {
+            scene: ({**settings, "techniques": {
+                name: _grids(path, node, name, grids, ("per_scene", scene))
+                for name, grids in settings["techniques"].items()}}
+                if isinstance(settings, dict) and isinstance(settings.get("techniques"), dict)
+                else settings)
+            for scene, settings in per_scene.items()}}
     try:
         experiment = Experiment.model_validate(data)
     except ValidationError as e:
@@ -189,13 +223,13 @@ def _no_repeats(path: Path, node, scenes: list[str]) -> None:
         first[name] = i
 
 
-def _grids(path: Path, node, name: str, grids) -> Grid | list[Grid]:
+def _grids(path: Path, node, name: str, grids, under: tuple = ()) -> Grid | list[Grid]:
     if grids is None:
         return Grid()
     items = grids if isinstance(grids, list) else [grids]
     checked = []
     for i, item in enumerate(items):
-        prefix = ("techniques", name) + ((i,) if isinstance(grids, list) else ())
+        prefix = under + ("techniques", name) + ((i,) if isinstance(grids, list) else ())
         try:
             checked.append(Grid.model_validate(item))
         except ValidationError as e:

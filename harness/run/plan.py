@@ -169,11 +169,28 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         if name not in grids:
             raise cfg.ConfigError(f"--set: technique {name!r} is not in this run "
                                   f"({', '.join(grids)})")
+    settings = _per_scene(exp, all_scenes, stands_for, registered, exp_path, node)
 
-    planned = len(wanted_scenes) * len(exp.resolutions or [None]) * sum(
-        len(grid_points(registered[tech], grid, ("techniques", tech), exp_path, node))
+    def scene_grids(scene_name: str) -> dict[str, list[tuple[cfg.Grid, tuple]]]:
+        """The scene's grids with the key path of each: the experiment's, those of the
+        techniques its per_scene entry names replaced (techniques not in this run stay out)."""
+        own = settings.get(scene_name)
+        out = {}
+        for tech, tech_grids in grids.items():
+            if own is not None and tech in own[0].techniques:
+                g, loc = own[0].techniques[tech], own[1] + ("techniques", tech)
+            else:
+                g, loc = tech_grids, ("techniques", tech)
+            items = g if isinstance(g, list) else [g]
+            out[tech] = [(grid, loc + ((i,) if len(items) > 1 else ()))
+                         for i, grid in enumerate(items)]
+        return out
+
+    planned = len(exp.resolutions or [None]) * sum(
+        len(grid_points(registered[tech], grid, loc, exp_path, node))
         if grid.curve is not None else grid.count()
-        for tech, tech_grids in grids.items() for grid in tech_grids)
+        for scene_name in wanted_scenes
+        for tech, tech_grids in scene_grids(scene_name).items() for grid, loc in tech_grids)
     if planned > exp.max_runs:
         raise cfg.ConfigError(f"{exp_path}: plans {planned:,} runs, more than the limit of "
                               f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
@@ -187,12 +204,14 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     seen: set[str] = set()
     for scene_name in wanted_scenes:
         base = built[scene_name]
+        own = settings.get(scene_name, (cfg.SceneSettings(), ()))[0]
+        scene_frames = exp.frames if own.frames is None else own.frames
+        scene_warmup = exp.warmup if own.warmup is None else own.warmup
         for width, height in exp.resolutions or [base.config.resolution]:
             scene_at = base.with_resolution(width, height)
-            for tech, tech_grids in grids.items():
+            for tech, tech_grids in scene_grids(scene_name).items():
                 version = registered[tech].code_version()
-                for gi, grid in enumerate(tech_grids):
-                    grid_loc = ("techniques", tech) + ((gi,) if len(tech_grids) > 1 else ())
+                for grid, grid_loc in tech_grids:
                     for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
                                                   node):
                         line = cfg._line_of(node, loc) if node is not None else None
@@ -201,9 +220,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
                                                  where if experiment_path else "--set")
                         # a moving scene's run measures each frame of its sequence once
-                        frames = scene_at.frames if scene_at.frames > 1 else exp.frames
+                        frames = scene_at.frames if scene_at.frames > 1 else scene_frames
                         spec = RunSpec(scene_name, tech, params, width, height, frames,
-                                       exp.warmup, exp.reference.samples, exp.reference.seed,
+                                       scene_warmup, exp.reference.samples, exp.reference.seed,
                                        scene_at.key, version, exp.statistics, exp.cost)
                         if spec.run_id not in seen:
                             seen.add(spec.run_id)
@@ -233,6 +252,31 @@ def _check_static(names: list[str], scenes: dict, exp_path: Path, node, from_opt
         if from_option or node is None:
             raise cfg.ConfigError(f"--cost: {why}")
         raise cfg.key_error(exp_path, node, ("cost",), why)
+
+
+def _per_scene(exp: cfg.Experiment, all_scenes: dict, stands_for: dict[str, list[str]],
+               registered: dict, path: Path, node) -> dict[str, tuple[cfg.SceneSettings, tuple]]:
+    """Each (sized) scene name with its ``per_scene`` settings and their key path: an entry for
+    a declared name serves all its sizes, one for ``name@size`` that size (in place of the
+    declared name's, whole: the two are not merged). An entry naming no scene of the file, or
+    an unknown technique, is a ConfigError naming the key."""
+    out: dict[str, tuple[cfg.SceneSettings, tuple]] = {}
+    for key, own in exp.per_scene.items():
+        if key not in stands_for and key not in all_scenes:
+            raise cfg.key_error(path, node, ("per_scene", key),
+                                f"no scene {key!r} in the scene file; it has "
+                                f"{', '.join(stands_for)}")
+        for tech in own.techniques:
+            if tech not in registered:
+                raise cfg.key_error(path, node, ("per_scene", key, "techniques", tech),
+                                    f"unknown technique; registered: {', '.join(registered)}")
+    for key, own in exp.per_scene.items():  # declared names first, sized ones over them
+        if key in stands_for:
+            out.update({name: (own, ("per_scene", key)) for name in stands_for[key]})
+    for key, own in exp.per_scene.items():
+        if key not in stands_for:
+            out[key] = (own, ("per_scene", key))
+    return out
 
 
 def size_label(triangles: int) -> str:
