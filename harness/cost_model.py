@@ -76,23 +76,25 @@ RTX_4090 = Coefficients(
 )
 
 # Fitted under cost: dynamic (every frame charged its maps, fits and reductions; indexed scene
-# meshes) to experiments/default.yaml's curves on box_plane and castle (76 runs, 15 frames each,
-# `shadowbench run experiments/default.yaml --scenes box_plane,castle`), on a 2-core machine
-# shared with other jobs (every run noisy, cpu_contention 0.1 to 0.85): R^2 0.62, relative
-# error median 31%, worst 348% (an sv run on box_plane, 19 ms given 86 ms). The coefficients
-# fitted before the policy gave R^2 -0.57 on the same runs: what a frame holds changed. The
-# reductions' term fitted to 0 (a few ms on llvmpipe, within the noise); per vertex absorbs the
-# shadow-volume vertices of two small scenes. Refit on a quiet machine and more scenes with
-# fit(); ``python -m harness.cost_model DIR`` prints both fits.
+# meshes) to `make bench`'s curves on the ten shipped scenes (374 runs, 15 frames each:
+# `shadowbench run experiments/default.yaml --scenes sphere_plane,box_plane,pins,castle,crowd,
+# terrain_long,slant_edge,silhouette_hard,camera_in_shadow,jeep`), on 2 cores shared with other
+# jobs (every run noisy): R^2 0.756, relative error median 36%, worst 726% (sv at a quarter mask
+# on slant_edge, 3.9 ms given 32 ms). The previous fit (box_plane and castle only, 76 runs)
+# gave R^2 -14 on these runs: its per-vertex term, fitted on two small scenes, charged crowd's
+# 26k-triangle volumes 1.7 s. The byte term fitted to 0 (map memory is a proxy of the map pass,
+# already counted by its fragments). Refit on a quiet machine with fit(); ``python -m
+# harness.cost_model DIR`` prints both fits.
 LLVMPIPE = Coefficients(
     name="llvmpipe (Mesa 22.3.6, LLVM 15.0.6, 256 bits), 2 shared cores",
-    source="fit() over experiments/default.yaml on box_plane and castle, 76 runs, cost: dynamic",
-    per_pass_ms=11.21,
-    per_vertex_ms=7.708e-3,
-    per_fragment_ms=1.342e-5,
-    per_fetch_ms=2.951e-5,
-    per_byte_ms=8.033e-8,
-    per_compute_ms=0.0,
+    source="fit() over experiments/default.yaml on the ten shipped scenes, 374 runs, "
+           "cost: dynamic",
+    per_pass_ms=6.497,
+    per_vertex_ms=7.641e-5,
+    per_fragment_ms=9.038e-6,
+    per_fetch_ms=2.581e-5,
+    per_byte_ms=0.0,
+    per_compute_ms=2.582e-4,
 )
 
 GPU = RTX_4090  # what results rows store as gpu_estimate_ms
