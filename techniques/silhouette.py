@@ -16,8 +16,7 @@ from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, fit_light
 
 from .shadowmap import LightDepthMap
-from .silhouette_edges import (EDGE_FACES_BINDING, FACE_NORMALS_BINDING, PART_POSES_BINDING,
-                               QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh)
+from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh
 
 HERE = Path(__file__).parent
 
@@ -120,10 +119,7 @@ class SilhouetteMap(Technique):
         self.edge_mesh = EdgeMesh(EdgeAdjacency(frame.scene))
         self.map_program = Program(HERE / "silhouette_edges.vert.glsl",
                                    HERE / "silhouette_map.frag.glsl",
-                                   {"EDGE_FACES_BINDING": EDGE_FACES_BINDING,
-                                    "FACE_NORMALS_BINDING": FACE_NORMALS_BINDING,
-                                    "PART_POSES_BINDING": PART_POSES_BINDING,
-                                    "QUAD_HALF_WIDTH": QUAD_HALF_WIDTH},
+                                   {"QUAD_HALF_WIDTH": QUAD_HALF_WIDTH},
                                    geometry=HERE / "silhouette_edges.geom.glsl")
         self.shading = Technique.shader(__file__, "fullscreen.vert.glsl",
                                         "silhouette_shading.frag.glsl")

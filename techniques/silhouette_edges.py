@@ -28,8 +28,9 @@ VERTEX_SIZES = (2, 2, 2, 2)
 # and how many faces it has, then its part (float attributes: exact integers below 2^24).
 EDGE_SIZES = (3, 3, 2, 1)
 MAX_FACE_REFERENCES = 2 ** 24
-# Shader storage bindings of the edge mesh's face list, face normals and part poses.
-EDGE_FACES_BINDING, FACE_NORMALS_BINDING, PART_POSES_BINDING = 0, 1, 2
+# Texture units of the edge mesh's buffer textures: face list, face normals and part poses
+# (unit 0 is the depth map's, SilhouetteMap.draw_edges).
+EDGE_FACES_UNIT, FACE_NORMALS_UNIT, PART_POSES_UNIT = 1, 2, 3
 
 
 class EdgeAdjacency:
@@ -74,7 +75,10 @@ class EdgeMesh:
     """Every edge of the scene on the GPU, geometry only, for ``silhouette_edges.vert.glsl``:
     one point per edge (its endpoints, the start and length of its run in the face list), the
     face list (indices of an edge's one, two or, non-manifold, more faces, edge after edge) and
-    each face's normal.
+    each face's normal. The face list, normals and part poses are buffer textures, not shader
+    storage buffers: llvmpipe's storage-buffer load made the edge pass 2.4x slower
+    (instancing@1e6 at 512^2, map 1024: 646 against 266 ms; 378 with the poses alone moved), as
+    it did the G-buffer pass (``harness.gl.geometry.SceneMesh``).
 
     Positions are stored relative to ``origin``, the centre of the scene's bounds, and the
     vertex stage works in that frame: :meth:`uniforms` folds ``model`` (the translation to the
@@ -100,13 +104,25 @@ class EdgeMesh:
         normals = np.zeros((len(adjacency.face_normals), 4), np.float32)
         normals[:, :3] = adjacency.face_normals
         self.edges = VertexArray(points, EDGE_SIZES, mode=GL.GL_POINTS)
+        self.parts = int(part.max(initial=0)) + 1
         self.buffers = GL.glGenBuffers(3)
-        for buffer, data in zip(self.buffers, (edge_faces, normals)):
-            GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
-            GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(data.nbytes, 4), data,
-                            GL.GL_STATIC_DRAW)
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
-        self.place(np.tile(np.eye(4), (part.max(initial=0) + 1, 1, 1)))
+        self.textures = GL.glGenTextures(3)
+        poses = np.zeros((self.parts * 4, 4), np.float32)
+        texels = max(len(edge_faces), len(normals), len(poses))
+        if texels > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
+            raise ValueError(f"{texels} texels: over the driver's buffer-texture size")
+        for buffer, texture, data, texel_format in zip(
+                self.buffers, self.textures, (edge_faces, normals, poses),
+                (GL.GL_R32UI, GL.GL_RGBA32F, GL.GL_RGBA32F)):
+            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
+            GL.glBufferData(GL.GL_TEXTURE_BUFFER, max(data.nbytes, 16),
+                            data if data.size else None,
+                            GL.GL_DYNAMIC_DRAW if data is poses else GL.GL_STATIC_DRAW)
+            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
+            GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, buffer)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+        self.place(np.tile(np.eye(4), (self.parts, 1, 1)))
 
     def place(self, poses: np.ndarray) -> None:
         """Upload each part's rigid transform, ``poses`` (P, 4, 4) in world space, as it acts
@@ -114,30 +130,35 @@ class EdgeMesh:
         stays exactly one, so a still scene's edges are the ones built."""
         local = poses.copy()
         local[:, :3, 3] += poses[:, :3, :3] @ self.origin - self.origin
-        # column-major, as GLSL reads a mat4 from a buffer
+        # column-major: four texels per part, one per column of its mat4
         data = np.ascontiguousarray(local.transpose(0, 2, 1), dtype=np.float32)
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.buffers[2])
-        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, data.nbytes, data, GL.GL_DYNAMIC_DRAW)
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, self.buffers[2])
+        GL.glBufferSubData(GL.GL_TEXTURE_BUFFER, 0, data.nbytes, data)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
 
     def uniforms(self, light: Light, light_view: np.ndarray) -> dict:
-        """``light_view_model`` (``light_view`` after ``model``) and ``light_in_model`` (the
-        light as a homogeneous vector, w = 0 directional, in the mesh's frame)."""
+        """``light_view_model`` (``light_view`` after ``model``), ``light_in_model`` (the
+        light as a homogeneous vector, w = 0 directional, in the mesh's frame) and the texture
+        units :meth:`draw` binds the buffer textures to."""
         model = np.eye(4)
         model[:3, 3] = self.origin
         light_vector = (np.append(-light.direction, 0.0) if light.type == "directional"
                         else np.append(light.position, 1.0))
         return {"light_view_model": light_view @ model,
-                "light_in_model": np.linalg.solve(model, light_vector)}
+                "light_in_model": np.linalg.solve(model, light_vector),
+                "edge_faces": EDGE_FACES_UNIT, "face_normals": FACE_NORMALS_UNIT,
+                "part_poses": PART_POSES_UNIT}
 
     def draw(self) -> None:
-        for binding, buffer in zip((EDGE_FACES_BINDING, FACE_NORMALS_BINDING,
-                                    PART_POSES_BINDING), self.buffers):
-            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
+        for unit, texture in zip((EDGE_FACES_UNIT, FACE_NORMALS_UNIT, PART_POSES_UNIT),
+                                 self.textures):
+            GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
+            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
         self.edges.draw()
 
     def release(self) -> None:
         self.edges.release()
+        GL.glDeleteTextures(3, self.textures)
         GL.glDeleteBuffers(3, self.buffers)
 
 

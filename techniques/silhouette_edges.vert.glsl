@@ -3,16 +3,16 @@
 // on the CPU: an edge between a face toward the light and one away from it, or a boundary edge
 // of an open mesh (one face), is kept; it is clipped to the light's near plane and projected to
 // map texels. The edge's part's pose (a moving object's rigid motion) moves its endpoints and
-// turns its faces' normals first. Defines from Python: EDGE_FACES_BINDING,
-// FACE_NORMALS_BINDING, PART_POSES_BINDING.
+// turns its faces' normals first. The face list, normals and poses are buffer textures, not
+// storage buffers: llvmpipe's storage-buffer load is the slower (EdgeMesh).
 layout(location = 0) in vec3 built_a;
 layout(location = 1) in vec3 built_b;
 layout(location = 2) in vec2 face_run;   // first entry in edge_faces, number of faces
 layout(location = 3) in float part;
 
-layout(std430, binding = EDGE_FACES_BINDING) readonly buffer EdgeFaces { uint edge_faces[]; };
-layout(std430, binding = FACE_NORMALS_BINDING) readonly buffer FaceNormals { vec4 face_normals[]; };
-layout(std430, binding = PART_POSES_BINDING) readonly buffer PartPoses { mat4 part_poses[]; };
+uniform usamplerBuffer edge_faces;   // R32UI: the faces of each edge, edge after edge
+uniform samplerBuffer face_normals;  // RGBA32F: xyz each face's normal
+uniform samplerBuffer part_poses;    // RGBA32F: each part's pose, four texels (columns)
 
 // The edge mesh's frame (EdgeMesh.uniforms): positions relative to its origin, so float32 never
 // holds a coordinate as large as the scene's distance from the world origin.
@@ -35,7 +35,8 @@ bool is_silhouette(vec3 a, mat3 turn) {
     int first = int(face_run.x), faces = int(face_run.y);
     int toward = 0;
     for (int k = 0; k < faces; ++k) {
-        toward += int(dot(turn * face_normals[edge_faces[first + k]].xyz, to_light) > 0.0);
+        vec3 normal = texelFetch(face_normals, int(texelFetch(edge_faces, first + k).r)).xyz;
+        toward += int(dot(turn * normal, to_light) > 0.0);
     }
     return faces == 1 || (toward > 0 && toward < faces);
 }
@@ -46,7 +47,9 @@ vec2 to_texels(vec3 view) {
 }
 
 void main() {
-    mat4 pose = part_poses[int(part)];
+    int column = 4 * int(part);
+    mat4 pose = mat4(texelFetch(part_poses, column), texelFetch(part_poses, column + 1),
+                     texelFetch(part_poses, column + 2), texelFetch(part_poses, column + 3));
     vec3 endpoint_a = (pose * vec4(built_a, 1.0)).xyz;
     vec3 endpoint_b = (pose * vec4(built_b, 1.0)).xyz;
     vec3 view_a = (light_view_model * vec4(endpoint_a, 1.0)).xyz;
