@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from OpenGL import GL
 
-from harness.gl.geometry import VertexArray
+from harness.gl.geometry import BufferTexture, VertexArray
 from harness.scene import BuiltScene, Light
 from harness.transforms import LightFrustum
 
@@ -105,23 +105,10 @@ class EdgeMesh:
         normals[:, :3] = adjacency.face_normals
         self.edges = VertexArray(points, EDGE_SIZES, mode=GL.GL_POINTS)
         self.parts = int(part.max(initial=0)) + 1
-        self.buffers = GL.glGenBuffers(3)
-        self.textures = GL.glGenTextures(3)
         poses = np.zeros((self.parts * 4, 4), np.float32)
-        texels = max(len(edge_faces), len(normals), len(poses))
-        if texels > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
-            raise ValueError(f"{texels} texels: over the driver's buffer-texture size")
-        for buffer, texture, data, texel_format in zip(
-                self.buffers, self.textures, (edge_faces, normals, poses),
-                (GL.GL_R32UI, GL.GL_RGBA32F, GL.GL_RGBA32F)):
-            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
-            GL.glBufferData(GL.GL_TEXTURE_BUFFER, max(data.nbytes, 16),
-                            data if data.size else None,
-                            GL.GL_DYNAMIC_DRAW if data is poses else GL.GL_STATIC_DRAW)
-            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
-            GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, buffer)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
-        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+        self.buffer_textures = (BufferTexture(edge_faces, GL.GL_R32UI),
+                                BufferTexture(normals, GL.GL_RGBA32F),
+                                BufferTexture(poses, GL.GL_RGBA32F, dynamic=True))
         self.place(np.tile(np.eye(4), (self.parts, 1, 1)))
 
     def place(self, poses: np.ndarray) -> None:
@@ -131,10 +118,7 @@ class EdgeMesh:
         local = poses.copy()
         local[:, :3, 3] += poses[:, :3, :3] @ self.origin - self.origin
         # column-major: four texels per part, one per column of its mat4
-        data = np.ascontiguousarray(local.transpose(0, 2, 1), dtype=np.float32)
-        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, self.buffers[2])
-        GL.glBufferSubData(GL.GL_TEXTURE_BUFFER, 0, data.nbytes, data)
-        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+        self.buffer_textures[2].write(local.transpose(0, 2, 1).astype(np.float32))
 
     def uniforms(self, light: Light, light_view: np.ndarray) -> dict:
         """``light_view_model`` (``light_view`` after ``model``), ``light_in_model`` (the
@@ -151,15 +135,14 @@ class EdgeMesh:
 
     def draw(self) -> None:
         for unit, texture in zip((EDGE_FACES_UNIT, FACE_NORMALS_UNIT, PART_POSES_UNIT),
-                                 self.textures):
-            GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
-            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
+                                 self.buffer_textures):
+            texture.bind(unit)
         self.edges.draw()
 
     def release(self) -> None:
         self.edges.release()
-        GL.glDeleteTextures(3, self.textures)
-        GL.glDeleteBuffers(3, self.buffers)
+        for texture in self.buffer_textures:
+            texture.release()
 
 
 def project_edges(endpoints: np.ndarray, frustum: LightFrustum,

@@ -47,20 +47,57 @@ class VertexArray:
         GL.glDeleteVertexArrays(1, [self.vao])
 
 
+class BufferTexture:
+    """A buffer texture (``samplerBuffer`` / ``usamplerBuffer``, read by ``texelFetch``) over
+    ``data``, one texel per row in ``texel_format``. Preferred to a shader storage buffer for
+    per-element reads: llvmpipe's storage-buffer load made the G-buffer pass 1.9x slower (castle
+    512^2: 56.7 against 30.7 ms, the unshared vertices' 29.2). More rows than the driver's
+    GL_MAX_TEXTURE_BUFFER_SIZE is a ValueError."""
+
+    def __init__(self, data: np.ndarray, texel_format: int, dynamic: bool = False):
+        if len(data) > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
+            raise ValueError(f"{len(data)} texels: over the driver's buffer-texture size")
+        data = np.ascontiguousarray(data)
+        self.buffer = GL.glGenBuffers(1)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, self.buffer)
+        GL.glBufferData(GL.GL_TEXTURE_BUFFER, max(data.nbytes, 16), data if data.size else None,
+                        GL.GL_DYNAMIC_DRAW if dynamic else GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+        self.texture = GL.glGenTextures(1)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.texture)
+        GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, self.buffer)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
+
+    def write(self, data: np.ndarray) -> None:
+        """Replace the first rows with ``data`` (same texel layout)."""
+        data = np.ascontiguousarray(data)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, self.buffer)
+        GL.glBufferSubData(GL.GL_TEXTURE_BUFFER, 0, data.nbytes, data)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+
+    def bind(self, unit: int) -> int:
+        """Bind to texture ``unit``; returns the unit (for the sampler uniform)."""
+        GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.texture)
+        return unit
+
+    def release(self) -> None:
+        GL.glDeleteTextures(1, [self.texture])
+        GL.glDeleteBuffers(1, [self.buffer])
+
+
 class SceneMesh:
     """The scene as engines draw it: shared vertices (position, loc 0) drawn by index
     (glDrawElements), so each vertex is shaded once however many triangles share it. What is
     flat per face (normal, albedo) is a buffer texture of RGBA32F (xyz normal, w albedo) that
     a fragment shader reads at ``gl_PrimitiveID``, the face's index in the draw (the
-    G-buffer's), bound by :meth:`bind_face_attributes`. A buffer texture rather than a shader
-    storage buffer: llvmpipe's storage-buffer load made the G-buffer pass 1.9x slower (castle
-    512^2: 56.7 against 30.7 ms, the unshared vertices' 29.2)."""
+    G-buffer's), bound by :meth:`bind_face_attributes`."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
                  albedo: np.ndarray):
         self.vertex_count, self.index_count = len(vertices), faces.size
         self.vao = GL.glGenVertexArrays(1)
-        self.vbo, self.ebo, self.face_buffer = GL.glGenBuffers(3)
+        self.vbo, self.ebo = GL.glGenBuffers(2)
         GL.glBindVertexArray(self.vao)
         GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self.vbo)
         positions = np.ascontiguousarray(vertices, dtype=np.float32)
@@ -73,22 +110,13 @@ class SceneMesh:
         GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, max(indices.nbytes, 4),
                         indices if indices.size else None, GL.GL_STATIC_DRAW)
         GL.glBindVertexArray(0)
-        attributes = np.ascontiguousarray(np.column_stack([normals, albedo]), dtype=np.float32)
-        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, self.face_buffer)
-        GL.glBufferData(GL.GL_TEXTURE_BUFFER, max(attributes.nbytes, 16),
-                        attributes if len(attributes) else None, GL.GL_STATIC_DRAW)
-        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
-        self.face_texture = GL.glGenTextures(1)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.face_texture)
-        GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, GL.GL_RGBA32F, self.face_buffer)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
+        self.face_attributes = BufferTexture(
+            np.column_stack([normals, albedo]).astype(np.float32), GL.GL_RGBA32F)
 
     def bind_face_attributes(self, unit: int) -> int:
         """Bind the per-face buffer texture to texture ``unit``; returns the unit (for a
         ``samplerBuffer`` uniform)."""
-        GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.face_texture)
-        return unit
+        return self.face_attributes.bind(unit)
 
     def draw(self) -> None:
         if self.index_count == 0:
@@ -98,8 +126,8 @@ class SceneMesh:
         GL.glBindVertexArray(0)
 
     def release(self) -> None:
-        GL.glDeleteTextures(1, [self.face_texture])
-        GL.glDeleteBuffers(3, [self.vbo, self.ebo, self.face_buffer])
+        self.face_attributes.release()
+        GL.glDeleteBuffers(2, [self.vbo, self.ebo])
         GL.glDeleteVertexArrays(1, [self.vao])
 
 
