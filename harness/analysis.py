@@ -53,7 +53,7 @@ def pareto_front(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_
     on_front = np.zeros(len(df), dtype=bool)
     positions = np.flatnonzero(_finite(df, cost, error).to_numpy())
     if len(positions):
-        frame = df.reset_index(drop=True).loc[positions]
+        frame = df[GROUP + [cost, error]].reset_index(drop=True).loc[positions]
         for _, g in frame.groupby(GROUP, sort=False):
             c, e = g[cost].to_numpy(float), g[error].to_numpy(float)
             at_most = (c[None, :] <= c[:, None]) & (e[None, :] <= e[:, None])
@@ -81,7 +81,7 @@ def curves(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae") 
     ``CURVE_COLUMNS``, the cost and error columns, ``on_front`` (across all techniques of the
     scene and size) and those of ``PLOT_COLUMNS`` the results have."""
     extra = [c for c in dict.fromkeys((cost, error) + PLOT_COLUMNS) if c in df.columns]
-    rows = df[_finite(df, cost, error)].reset_index(drop=True)
+    rows = _rows(df, _finite(df, cost, error), "params", "run_id", *extra)
     if rows.empty:
         return pd.DataFrame(columns=CURVE_COLUMNS + extra)
     rows = rows.assign(on_front=pareto_front(rows, cost=cost, error=error))
@@ -189,7 +189,7 @@ def summary(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae",
     from . import registry
 
     reference = reference or registry.baseline()
-    rows = df[_finite(df, cost, error)].reset_index(drop=True)
+    rows = _rows(df, _finite(df, cost, error), cost, error)
     if rows.empty:
         return pd.DataFrame(columns=SUMMARY_COLUMNS)
     rows = rows.assign(on_front=pareto_front(rows, cost=cost, error=error))
@@ -240,16 +240,20 @@ def _choose(df, cost: str, criteria, columns: list[str], *, minimise: str) -> pd
     names = [n for n in dict.fromkeys([cost, minimise]) if n in df.columns]
     if cost not in df.columns or minimise not in df.columns or not criteria:
         return pd.DataFrame(columns=columns + names)
-    usable = _finite(df, cost, minimise)
-    labels = setting_labels(df[usable])
+    metrics = [metric for metric, *_ in criteria]
+    usable = _rows(df, _finite(df, cost, minimise), "params", "run_id", *names, *metrics,
+                   keep_index=True)
+    labels = setting_labels(usable)
+    groups = [(key, g, list(g.groupby("technique", sort=True)))
+              for key, g in usable.groupby(GROUP, sort=True)]
     out = []
     for metric, level, values, limits in criteria:
-        fits = usable & np.isfinite(values.astype(float)) & (values <= limits)
-        for key, g in df[usable].groupby(GROUP, sort=True):
+        fits = np.isfinite(values.astype(float)) & (values <= limits)
+        for key, g, by_technique in groups:
             threshold = float(limits[g.index].median())
             found = []
-            for technique, t in g.groupby("technique", sort=True):
-                within = t[fits[t.index]]
+            for technique, t in by_technique:
+                within = t[fits[t.index].to_numpy()]
                 record = dict(zip(GROUP, key), metric=metric, level=level, threshold=threshold,
                               technique=technique, met=not within.empty, setting=None,
                               value=math.nan, cheapest=False, run_id=None,
@@ -264,6 +268,16 @@ def _choose(df, cost: str, criteria, columns: list[str], *, minimise: str) -> pd
             if found:
                 out[min(found)[2]]["cheapest"] = True
     return pd.DataFrame(out, columns=columns + names)
+
+
+def _rows(df: pd.DataFrame, keep: pd.Series, *columns: str,
+          keep_index: bool = False) -> pd.DataFrame:
+    """The kept rows with only the grouping columns and ``columns`` (those ``df`` has): a
+    results table has about a hundred columns, and copying them all on every selection was
+    most of the dashboard's time."""
+    names = [c for c in dict.fromkeys(GROUP + ["technique", *columns]) if c in df.columns]
+    rows = df.loc[keep, names]
+    return rows if keep_index else rows.reset_index(drop=True)
 
 
 def _finite(df: pd.DataFrame, *columns: str) -> pd.Series:

@@ -14,7 +14,6 @@ import time
 import pytest
 
 from harness import report
-from harness.report import images
 
 CHROMIUM = os.environ.get("SHADOWBENCH_CHROMIUM", "/usr/bin/chromium")
 CHROMEDRIVER = os.environ.get("SHADOWBENCH_CHROMEDRIVER", "/usr/bin/chromedriver")
@@ -33,11 +32,7 @@ def page(tmp_path_factory, gl_context):
     from test_report import make_run_dir
 
     run = make_run_dir(tmp_path_factory.mktemp("browser") / "run")
-    shown, images.SHOWN_PX = images.SHOWN_PX, 64
-    try:
-        return report.build_report(run)
-    finally:
-        images.SHOWN_PX = shown
+    return report.build_report(run, shown_px=64)
 
 
 @pytest.fixture(scope="module")

@@ -174,6 +174,28 @@ def test_a_damaged_or_missing_array_shows_that_run_unavailable(tmp_path, make_re
     assert "arrays/run-2.npz cannot be read (FileNotFoundError)" in page
 
 
+def test_scenes_built_by_worker_processes_make_the_page_one_process_makes(
+        tmp_path, make_results, monkeypatch):
+    """Three scenes of 1, 3 and 2 runs (handed to the workers largest first), one with a damaged
+    array: two worker processes give the page one process gives, the sections in the results'
+    order and the worker's note on the damaged array on it. Catches sections in the order the
+    workers finish and a worker's notes lost with its process."""
+    from harness import report
+
+    runs = [{"scene": scene, "params": {"res": 256 * (i + 1)}}
+            for scene, count in (("c", 1), ("a", 3), ("b", 2)) for i in range(count)]
+    folder = make_results(tmp_path / "run", runs)
+    damaged = folder / "arrays" / "run-2.npz"
+    damaged.write_bytes(damaged.read_bytes()[:40])
+    pages = {}
+    for workers in (1, 2):
+        monkeypatch.setattr(report, "_cpus", lambda: workers)
+        pages[workers] = re.sub(r"page built \S+", "", build_report(folder).read_text())
+    assert pages[2] == pages[1]
+    assert re.findall(r'<section class="view scene" id="scene-(\w+)"', pages[2]) == ["c", "a", "b"]
+    assert "arrays/run-2.npz cannot be read (BadZipFile)" in pages[2]
+
+
 def test_report_on_a_folder_without_results_is_one_line(tmp_path, capsys):
     """Catches a traceback (FileNotFoundError, KeyError on a foreign CSV) instead of exit 2."""
     (tmp_path / "foreign").mkdir()

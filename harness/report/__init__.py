@@ -27,6 +27,9 @@ Names and values from the results reach the page only through autoescaped templa
 from __future__ import annotations
 
 import datetime as dt
+import multiprocessing
+import os
+from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 
 from .. import analysis, registry
@@ -47,9 +50,11 @@ def visibility_png(v, covered, path: Path) -> None:
     images.write_png(images.visibility(v, covered), images.VISIBILITY, Path(path))
 
 
-def build_report(out_dir: str | Path) -> Path:
+def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Path:
     """Write ``out_dir/index.html`` (and its native-size images) from the stored results;
-    returns its path. ConfigError when the folder holds no results (``stored.read_results``)."""
+    returns its path. ``shown_px``: the longer side of an image as the page shows it (larger
+    images also get a native-size file). ConfigError when the folder holds no results
+    (``stored.read_results``)."""
     folder = Folder(out_dir)
     everything = folder.rows()
     meta = folder.manifest()
@@ -59,27 +64,64 @@ def build_report(out_dir: str | Path) -> Path:
     described = meta.get("scenes") if isinstance(meta.get("scenes"), dict) else {}
     cheapest = analysis.cheapest_at_error(current)
     budgets = analysis.best_within_budget(current)
-    scenes = []
-    for name in dict.fromkeys(shown["scene"]):
-        section = scene_section(
-            SceneImages(folder, name), shown[shown["scene"] == name],
-            current[current["scene"] == name], cheapest[cheapest["scene"] == name],
-            budgets[budgets["scene"] == name], colours,
-            (described.get(name) or {}).get("description"))
-        section["slug"] = slug(name)
-        section["pick"] = overview.scene_pick(cheapest, name, [
-            tuple(map(int, s.split("x"))) for s in section["sizes"]])
-        section["failed"] = sum(r["status"] == "error" for r in section["runs"])
-        scenes.append(section)
-    page = render(
-        "index.html.j2", folder=str(out_dir), meta=meta,
-        caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
-        hidden=len(everything) - len(shown),
-        verdicts=overview.verdicts(current, shown, colours), colours=colours,
-        baseline=registry.baseline() or "the baseline",
-        scenes=scenes, stability=stability_table(shown),
-        scale=scale_view(current, colours, registry.baseline()),
-        theta=plots.theta(current, colours), notes=folder.notes,
-        papers=papers_link(folder.root),
-        built=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))
-    return write_page(folder.root / "index.html", page)
+    jobs = {name: (shown[shown["scene"] == name], current[current["scene"] == name],
+                   cheapest[cheapest["scene"] == name], budgets[budgets["scene"] == name],
+                   colours, (described.get(name) or {}).get("description"), shown_px)
+            for name in dict.fromkeys(shown["scene"])}
+    workers = min(len(jobs), _cpus())
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) \
+            if workers > 1 else _InProcess() as pool:
+        # the largest scenes first, so that no worker is left with one at the end
+        pending = {name: pool.submit(scene_part, folder.root, name, *jobs[name])
+                   for name in sorted(jobs, key=lambda n: -len(jobs[n][0]))}
+        page = dict(
+            folder=str(out_dir), meta=meta,
+            caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
+            hidden=len(everything) - len(shown),
+            verdicts=overview.verdicts(current, shown, colours), colours=colours,
+            baseline=registry.baseline() or "the baseline", stability=stability_table(shown),
+            scale=scale_view(current, colours, registry.baseline()),
+            theta=plots.theta(current, colours), papers=papers_link(folder.root))
+        scenes = []
+        for name in jobs:
+            section, notes = pending[name].result()
+            scenes.append(section)
+            folder.notes.extend(notes)
+    return write_page(folder.root / "index.html", render(
+        "index.html.j2", **page, scenes=scenes, notes=folder.notes,
+        built=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")))
+
+
+def scene_part(root: Path, name: str, shown, current, cheapest, budgets,
+               colours: dict[str, str], description: str | None,
+               shown_px: int) -> tuple[dict, list[str]]:
+    """One scene's section (``shown``, ``current``, ``cheapest`` and ``budgets`` cut to it)
+    and the notes on what of its files could not be used. A process of its own: its images
+    are most of the dashboard's time."""
+    folder = Folder(root)
+    section = scene_section(SceneImages(folder, name, shown_px), shown, current, cheapest, budgets,
+                            colours, description)
+    section["slug"] = slug(name)
+    section["pick"] = overview.scene_pick(cheapest, name, [
+        tuple(map(int, s.split("x"))) for s in section["sizes"]])
+    section["failed"] = sum(r["status"] == "error" for r in section["runs"])
+    return section, folder.notes
+
+
+def _cpus() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+class _InProcess:
+    """The executor for one worker: the work runs at submit, in this process."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args):
+        future = Future()
+        future.set_result(fn(*args))
+        return future

@@ -173,9 +173,11 @@ def _image(values: np.ndarray, scale: Scale) -> Image.Image:
 
 
 def data_uri(values: np.ndarray, scale: Scale) -> str:
-    """The image as a data URI: lossless WebP (about half the size of a palette PNG here)."""
+    """The image as a data URI: lossless WebP (about half the size of a palette PNG here), at
+    the encoder's low effort: half the time of its default (method 4, quality 80), 5 % larger."""
     out = io.BytesIO()
-    _image(values, scale).convert("RGB").save(out, format="WEBP", lossless=True, method=4)
+    _image(values, scale).convert("RGB").save(out, format="WEBP", lossless=True, method=1,
+                                              quality=0)
     return "data:image/webp;base64," + base64.b64encode(out.getvalue()).decode("ascii")
 
 

@@ -17,8 +17,8 @@ from .stored import Folder, slug
 class SceneImages:
     """Images of one scene, reference by image size, runs by their place in the run list."""
 
-    def __init__(self, folder: Folder, scene: str):
-        self.folder, self.scene = folder, scene
+    def __init__(self, folder: Folder, scene: str, shown_px: int = im.SHOWN_PX):
+        self.folder, self.scene, self.shown_px = folder, scene, shown_px
         self.references: dict[str, dict | None] = {}  # "WxH" -> reference entry (reference())
         self._ref_arrays: dict[str, dict | None] = {}
 
@@ -27,11 +27,11 @@ class SceneImages:
         """(data URI at the size shown, path of the native-size file or None): the file is
         written only where the page shows the image smaller than it is."""
         h, w = values.shape
-        if im.shrink_factor(w, h) == 1:
+        if im.shrink_factor(w, h, self.shown_px) == 1:
             return im.data_uri(values, scale), None
         relative = Path("images") / slug(self.scene) / size / f"{name}.png"
         im.write_png(values, scale, self.folder.root / relative)
-        return im.data_uri(shrink(values), scale), relative.as_posix()
+        return im.data_uri(shrink(values, self.shown_px), scale), relative.as_posix()
 
     def reference(self, size: str, relative: str) -> dict | None:
         """The reference V of one image size (read once)."""
@@ -99,7 +99,8 @@ class SceneImages:
             values = np.asarray(z[key], np.float64)
             scale = im.map_scale(values)
             out["maps"].append({"name": key.removeprefix("map_"),
-                                "uri": im.data_uri(im.shrink_mean(values), scale),
+                                "uri": im.data_uri(im.shrink_mean(values, self.shown_px),
+                                                   scale),
                                 "lo": plots.number(scale.lo), "hi": plots.number(scale.hi)})
         return out, None
 
