@@ -51,11 +51,21 @@ def alias_map(clip: np.ndarray, res: int, position: np.ndarray, normal: np.ndarr
     dx = texel[:-1, 1:] - texel[:-1, :-1]
     dy = texel[1:, :-1] - texel[:-1, :-1]
     jac = np.stack([dx, dy], axis=-1)  # (..., texel axis, pixel axis)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sigma_min = np.linalg.svd(np.where(np.isfinite(jac), jac, 0.0), compute_uv=False)[..., -1]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        sigma_min = smallest_singular_value(np.where(np.isfinite(jac), jac, 0.0))
         alias[:-1, :-1] = np.where(valid & np.all(np.isfinite(jac), axis=(-1, -2)),
                                    1.0 / sigma_min, np.nan)
     return alias
+
+
+def smallest_singular_value(m: np.ndarray) -> np.ndarray:
+    """The smaller singular value of each 2 x 2 matrix of ``m`` (..., 2, 2), in closed form:
+    numpy's batched SVD took 0.4 s for a 512 x 512 image's Jacobians. With t = |M|_F^2 and
+    d = det M, sigma_min^2 = 2 d^2 / (t + sqrt(t^2 - 4 d^2)), which does not cancel."""
+    t = np.einsum("...ij,...ij->...", m, m)
+    d = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
+    root = np.sqrt(np.maximum(t * t - 4 * d * d, 0.0))
+    return np.where(t > 0, np.abs(d) * np.sqrt(2 / np.where(t > 0, t + root, 1.0)), 0.0)
 
 
 def alias_statistics(alias: np.ndarray, normal: np.ndarray, position: np.ndarray,

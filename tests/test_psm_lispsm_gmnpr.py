@@ -394,3 +394,24 @@ def test_theta_sweep_experiment_names_its_angles():
         angles.append(angle)
     assert min(angles) < 1e-3 and max(angles) > 90 - 1e-3
     assert max(np.diff(sorted(angles))) <= 5 + 1e-3
+
+
+def test_the_closed_form_smallest_singular_value_is_numpys():
+    """The aliasing map's 2 x 2 Jacobians: the closed form equals np.linalg.svd's smaller
+    singular value to 1e-12 of the larger, for random, rank-one, zero and nearly singular
+    matrices at scales from 1e-6 to 1e6 (an absolute error of eps x sigma_max, as SVD's).
+    Catches the textbook (t - sqrt(t^2 - 4 d^2)) / 2, which cancels to 0 or below for a
+    texel much longer than wide."""
+    from techniques.warp_diagnostics import smallest_singular_value
+
+    rng = np.random.default_rng(7)
+    m = rng.normal(size=(4000, 2, 2))
+    m[:500] = 0.0
+    m[500:1000, 1] = m[500:1000, 0] * rng.normal(size=(500, 1))  # rank one
+    m[1000:1500, 1] = m[1000:1500, 0] + 1e-7 * rng.normal(size=(500, 2))  # nearly singular
+    for scale in (1e-6, 1.0, 1e6):
+        a = m * scale
+        expected = np.linalg.svd(a, compute_uv=False)
+        got = smallest_singular_value(a)
+        assert np.all(np.abs(got - expected[:, 1]) <= 1e-12 * np.maximum(expected[:, 0], 1e-300))
+        assert np.all(got[1000:1500] > 0)
