@@ -132,7 +132,7 @@ class ShadowVolumes(Technique):
     def prepare(self, frame: Frame) -> None:
         p = self.params
         self.front_increments = p.method != "zfail"
-        self.meshes = [sv_volumes.clean(part) for part in frame.scene.parts]
+        self.meshes = sv_volumes.clean_parts(frame.scene.parts)
         nested = p.buffer == "stencil" or p.normalize == "max"
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
         self.volumes, self.near_clip = self._volume_geometry(frame)

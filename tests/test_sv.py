@@ -380,3 +380,24 @@ def test_light_inside_closed_mesh_warns(evaluate, gl_context):
     facing = e.mask & (np.einsum("ijk,ijk->ij", a.normal, to_light) > 0)
     assert facing.sum() > 500
     assert metrics.wrong_pct(e.visibility, e.reference.visibility, mask=facing) < 0.5
+
+
+def test_cleaned_parts_are_reused_only_for_the_same_geometry():
+    """sv runs of one scene share its cleaned parts (closedness and convexity are computed
+    once); parts whose vertices differ by one coordinate are cleaned again and the box's
+    open copy is found open. Catches a cache keyed by part names or array shapes, which
+    would hand the previous scene's closed box to the open one, and cached arrays a run can
+    write into."""
+    box = trimesh.creation.box()
+    part = MeshPart("box", box.vertices.astype(np.float32), box.faces.astype(np.int32), 0.5)
+    first = sv_volumes.clean_parts([part])
+    assert first[0] is sv_volumes.clean_parts([part])[0] and first[0].closed
+    with pytest.raises(ValueError):
+        first[0].vertices[0, 0] = 1.0
+    moved = dataclasses.replace(part, vertices=part.vertices + np.float32([0, 0, 1e-3]))
+    assert sv_volumes.clean_parts([moved])[0] is not first[0]
+    opened = dataclasses.replace(part, faces=part.faces[:-1])
+    assert not sv_volumes.clean_parts([opened])[0].closed
+    same_shape = dataclasses.replace(part, faces=np.roll(part.faces, 1, axis=0)[::-1].copy())
+    assert sv_volumes.clean_parts([same_shape])[0].faces.tolist() == \
+        sv_volumes.clean(same_shape).faces.tolist()
