@@ -190,6 +190,26 @@ def test_batches_keep_prepared_maps_within_the_budget(logged, tmp_path, small_sc
     assert sorted(measured) == sorted(list(range(7)) * 4)
 
 
+def test_batches_close_when_resident_memory_grows_by_the_budget(logged, tmp_path,
+                                                                small_scene_file, monkeypatch):
+    """Runs of 1 MiB of maps that each hold 1.5 GiB of other buffers (the process's resident
+    memory as the live runs make it): a batch closes once it has grown by 2 GiB (two runs),
+    and every run still gets all its frames. Catches batches that count only the maps (7
+    live: 10.5 GiB at 10^6 triangles) and a budget on the total, which a process that stays
+    large after a batch would hold to one run a batch."""
+    from harness.run import measure
+
+    monkeypatch.setattr(measure, "resident_bytes",
+                        lambda: (4 + 1.5 * len(logged.live)) * 2**30)
+    scene_file = small_scene_file("box_plane", size=(32, 32))
+    code = cli.main(["run", str(_sweep(tmp_path, range(7))), "--scene-file", str(scene_file),
+                     "--out", str(tmp_path / "out"), "--quiet"])
+    assert code == 0
+    assert logged.most_live == 2
+    measured = [i for i, measuring in logged.calls if measuring]
+    assert sorted(measured) == sorted(list(range(7)) * 4)
+
+
 # --- machine load ----------------------------------------------------------------------------
 
 BUSY_LOOP = "import time\nend = time.time() + 120\nwhile time.time() < end:\n    pass\n"

@@ -16,7 +16,7 @@ from .. import results
 from ..gl import measure as pass_measure
 from ..gl.measure import default_timer
 from ..timing import CONFIDENCE, NOISY_CONTENTION
-from .measure import BATCH_BYTES, BATCH_RUNS
+from .measure import BATCH_BYTES, BATCH_RESIDENT, BATCH_RUNS
 from .plan import Plan
 
 
@@ -153,7 +153,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
                                        if counters_missing else {"available": True})},
         "timing": {"interval": f"{CONFIDENCE:.0%} interval of the median",
                    "noisy_contention": NOISY_CONTENTION, "batch_bytes": BATCH_BYTES,
-                   "batch_runs": BATCH_RUNS},
+                   "batch_runs": BATCH_RUNS, "batch_resident_bytes": BATCH_RESIDENT},
         "gpu": _nvidia_gpus(),
         "cpu": _cpu(),
         "git_commit": _git_commit(),

@@ -26,9 +26,13 @@ from .score import _first_columns, _observe, _one_line, _score, _Sequence, _sequ
 # over all of them instead of landing on one. A batch keeps its runs prepared at once, so it
 # closes when its runs' maps (their mem_bytes, known after the first frame) reach
 # BATCH_BYTES or it holds BATCH_RUNS runs: memory stays within about one batch (a 4096^2
-# float map is 64 MiB) whatever the sweep.
+# float map is 64 MiB) whatever the sweep. It also closes when the process's resident memory
+# has grown by BATCH_RESIDENT since the batch began: at 10^6 triangles each prepared run holds
+# buffers the size of the scene (edges, adjacency, volumes) that its mem_bytes leaves out, and
+# 16 of them took make scale's process to 4.9 GiB.
 BATCH_BYTES = 256 * 2**20
 BATCH_RUNS = 16
+BATCH_RESIDENT = 2 * 2**30
 
 
 @dataclass
@@ -163,14 +167,24 @@ def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
         timed.meter.add_load(others_s * wall / round_s, capacity_s * wall / round_s)
 
 
+def resident_bytes() -> int:
+    """This process's resident memory now; 0 where ``/proc/self/statm`` is missing."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
 def _batches(specs: list[RunSpec], start):
     """The runs started (``start(spec)``: prepared and warmed up) in batches that close at
-    BATCH_RUNS runs or BATCH_BYTES of maps; yields (the runs that could not start, the
-    batch)."""
+    BATCH_RUNS runs, BATCH_BYTES of maps or BATCH_RESIDENT more resident memory; yields (the
+    runs that could not start, the batch)."""
     queue = list(specs)
     while queue:
-        failed, batch, batch_bytes = [], [], 0
-        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
+        failed, batch, batch_bytes, began = [], [], 0, resident_bytes()
+        while (queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES
+               and resident_bytes() - began < BATCH_RESIDENT):
             timed = start(queue.pop(0))
             if not timed.alive:
                 failed.append(timed)
