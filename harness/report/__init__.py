@@ -21,7 +21,8 @@ The page's parts, one module each:
 - ``papers``: the Papers page; ``compare``: two results folders run by run.
 
 Names and values from the results reach the page only through autoescaped templates
-(``render``) and arrays are read only from inside the folder (``stored``).
+(``render``) and arrays are read only from inside the folder (``stored``). The scene sections,
+most of the build's time (their images), are built in worker processes, one per core.
 """
 
 from __future__ import annotations
