@@ -30,7 +30,7 @@ from __future__ import annotations
 import datetime as dt
 import multiprocessing
 import os
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 from .. import analysis, registry
@@ -70,8 +70,9 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
                    colours, (described.get(name) or {}).get("description"), shown_px)
             for name in dict.fromkeys(shown["scene"])}
     workers = min(len(jobs), _cpus())
+    # one worker: a thread of this process, which a 2-second process start would not repay
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) \
-            if workers > 1 else _InProcess() as pool:
+            if workers > 1 else ThreadPoolExecutor(1) as pool:
         # the largest scenes first, so that no worker is left with one at the end
         pending = {name: pool.submit(scene_part, folder.root, name, *jobs[name])
                    for name in sorted(jobs, key=lambda n: -len(jobs[n][0]))}
@@ -111,18 +112,3 @@ def scene_part(root: Path, name: str, shown, current, cheapest, budgets,
 
 def _cpus() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-class _InProcess:
-    """The executor for one worker: the work runs at submit, in this process."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def submit(self, fn, *args):
-        future = Future()
-        future.set_result(fn(*args))
-        return future
