@@ -8,8 +8,10 @@ through its centre hits geometry, exactly the GL rasteriser's coverage rule. All
 Dr.Jit kernel over the pixels, as Mitsuba's own integrators run (``scalar_rgb``: a pixel loop).
 When the scene's effects include ``direct``, Mitsuba's ``direct`` integrator (delta light,
 diffuse BSDFs, no indirect light) renders the shaded image too.
-Results are cached on disk under a hash of the scene, resolution, samples and Mitsuba version;
-a damaged entry is traced again, a cache that cannot be written is skipped with a warning.
+Results are cached on disk under a hash of the scene, resolution, samples and Mitsuba version,
+with a checksum of their arrays; an entry that fails its checksum or the checks of V (finite, in
+[0, 1], this scene's shape) is traced again, rewritten and noted for the manifest, and a cache
+that cannot be written is skipped with a warning.
 A scene Mitsuba cannot trace raises :class:`UntraceableSceneError`.
 """
 
@@ -28,10 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from .config import cache_root, square_number
-from .results import save_arrays
+from .config.cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from .scene import BuiltScene
 
-CACHE_VERSION = 5  # bump when the reference's definition changes
+CACHE_VERSION = 6  # bump when the reference's definition changes; 6: checksums
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
                "/usr/lib", "/usr/local/lib")
 # Irradiance (directional) or intensity (spot, point) of pi makes the diffuse radiance
@@ -280,27 +282,33 @@ def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
+REFERENCE_ENTRY = {"visibility": ("f", 2), "covered": ("b", 2), "direct": ("f", None),
+                   "seconds": ("f", 0), "variant": ("U", 0), "build_seconds": ("f", 0)}
+
+
 def _read_cached(path: Path, scene: BuiltScene) -> Reference | None:
-    """The cached reference at ``path``, or None when it is missing, unreadable or not of this
-    scene's shape (a zero-length, truncated or foreign file is a miss, traced again)."""
-    if not path.is_file():
+    """The cached reference at ``path``, verified: its checksum (:mod:`harness.config.
+    cache_entry`), then this scene's shape and dtypes, V finite and in [0, 1], the direct image
+    finite and not negative; None when there is no entry. A DamagedEntry when a check fails."""
+    z = read_entry(path, REFERENCE_ENTRY)
+    if z is None:
         return None
-    try:
-        with np.load(path) as z:
-            visibility, covered, direct = z["visibility"], z["covered"], z["direct"]
-            seconds, variant = float(z["seconds"]), str(z["variant"])
-            # entries written before the build was timed apart have no build_seconds
-            build_seconds = float(z["build_seconds"]) if "build_seconds" in z else math.nan
-    except Exception:  # numpy raises many types for a damaged file (EOFError, TypeError, ...)
-        return None
+    visibility, covered, direct = z["visibility"], z["covered"], z["direct"]
     shape = (scene.height, scene.width)
     wants_direct = "direct" in scene.config.effects
     if (visibility.shape != shape or visibility.dtype != np.float32 or covered.shape != shape
-            or covered.dtype != bool
+            or direct.dtype != np.float32
             or direct.shape != (shape + (3,) if wants_direct else (0,))):
-        return None
-    return Reference(visibility, covered, direct if wants_direct else None, seconds, variant,
-                     cached=True, build_seconds=build_seconds)
+        raise DamagedEntry(f"not this scene's {scene.width}x{scene.height} arrays")
+    if not ((visibility >= 0) & (visibility <= 1)).all():  # NaN fails it too
+        raise DamagedEntry("visibility not in [0, 1]")
+    if not (direct >= 0).all() or not np.isfinite(direct).all():
+        raise DamagedEntry("direct image not finite and >= 0")
+    seconds = float(z["seconds"])
+    if not seconds >= 0:
+        raise DamagedEntry("seconds not >= 0")
+    return Reference(visibility, covered, direct if wants_direct else None, seconds,
+                     str(z["variant"]), cached=True, build_seconds=float(z["build_seconds"]))
 
 
 _cache_write_failure: str | None = None  # why this process stopped writing the cache
@@ -313,10 +321,13 @@ def _write_cache(path: Path, ref: Reference) -> None:
     if _cache_write_failure is not None:
         return
     try:
-        # processes sharing the cache (Dask workers) may trace one scene at once
-        save_arrays(path, visibility=ref.visibility, covered=ref.covered,
-                    direct=ref.direct if ref.direct is not None else np.zeros(0, np.float32),
-                    seconds=ref.seconds, variant=ref.variant, build_seconds=ref.build_seconds)
+        # processes sharing the cache (Dask workers) may trace one scene at once: each writes
+        # its own temporary file
+        write_entry(path, {
+            "visibility": ref.visibility, "covered": ref.covered,
+            "direct": ref.direct if ref.direct is not None else np.zeros(0, np.float32),
+            "seconds": np.float64(ref.seconds), "variant": np.array(ref.variant),
+            "build_seconds": np.float64(ref.build_seconds)}, compressed=True)
     except OSError as e:
         _cache_write_failure = f"{path.parent}: {e.strerror or e}"
         warnings.warn(f"reference cache not writable ({_cache_write_failure}); references are "
@@ -342,7 +353,11 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     Raises :class:`UntraceableSceneError` for a scene Mitsuba cannot trace."""
     square_number(samples)
     path = cache_dir() / f"{cache_key(scene, samples, seed)}.npz"
-    cached = _read_cached(path, scene) if use_cache else None
+    damaged = None
+    try:
+        cached = _read_cached(path, scene) if use_cache else None
+    except DamagedEntry as e:
+        cached, damaged = None, str(e)
     if cached is not None:
         return cached
     _check_finite(scene)
@@ -363,4 +378,6 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
                     build_seconds=built)
     if use_cache:
         _write_cache(path, ref)
+        if damaged:
+            note_rebuilt(path, damaged)
     return ref

@@ -278,11 +278,11 @@ def test_a_full_cache_warns_and_still_returns_the_reference(scene_at, tmp_path, 
     monkeypatch.setattr(ref_mod, "_cache_write_failure", None)
     attempts = []
 
-    def disk_full(path, **arrays):
+    def disk_full(path, arrays, **options):
         attempts.append(path)
         raise OSError(errno.ENOSPC, "No space left on device", str(path))
 
-    monkeypatch.setattr(ref_mod, "save_arrays", disk_full)
+    monkeypatch.setattr(ref_mod, "write_entry", disk_full)
     with pytest.warns(RuntimeWarning, match="No space left on device"):
         ref = compute_reference(scene_at("box_plane", 32), samples=4)
     assert ref.visibility.shape == (32, 32) and not ref.cached

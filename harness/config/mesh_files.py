@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
+from .limits import MAX_COORDINATE
 from .mesh_formats import (check_numbers, check_vertices, declared_triangles, mesh_format,
                            read_parts)
 from .yaml_source import check_regular_file, key_error
@@ -21,7 +23,7 @@ from .yaml_source import check_regular_file, key_error
 if TYPE_CHECKING:
     from .scene_schema import MeshFile
 
-MESH_CACHE_VERSION = 1  # bump when what is cached (or how it is built) changes
+MESH_CACHE_VERSION = 2  # bump when what is cached (or how it is built) changes; 2: checksums
 # y-up assets (most of them) turned so that their +y is the scene's +z
 UP_ROTATION = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 
@@ -68,10 +70,15 @@ def mesh_parts(mesh_path: Path, up: str = "z", data: bytes | None = None) -> Mes
     key = hashlib.sha256(data + f"|{up}|{MESH_CACHE_VERSION}".encode()).hexdigest()[:24]
     if key not in _loaded:
         path = cache_root() / "mesh" / f"{key}.npz"
-        parts = _read_cache(path)
+        try:
+            parts, damaged = _read_cache(path), None
+        except DamagedEntry as e:
+            parts, damaged = None, str(e)
         if parts is None:
-            parts = _build(mesh_path, data, up)
+            parts = _build(mesh_path, data, up)  # a refused mesh raises: nothing is written
             _write_cache(path, parts)
+            if damaged:
+                note_rebuilt(path, damaged)
         _loaded[key] = parts
     return _loaded[key]
 
@@ -153,32 +160,49 @@ def _closed(faces: np.ndarray) -> bool:
     return bool((keys[at] == reverse).all())
 
 
+MESH_ENTRY = {"names": ("U", 1), "closed": ("b", 1), "dropped": ("i", 0), "vertices": ("f", 2),
+              "faces": ("i", 2), "vertex_ends": ("i", 1), "face_ends": ("i", 1)}
+
+
 def _read_cache(path: Path) -> MeshParts | None:
-    """The cached parts at ``path``; None when missing, unreadable or foreign (a miss)."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            vertex_ends, face_ends = z["vertex_ends"], z["face_ends"]
-            vertices = np.split(z["vertices"], vertex_ends[:-1])
-            faces = np.split(z["faces"], face_ends[:-1])
-            return MeshParts(tuple(str(n) for n in z["names"]), tuple(vertices), tuple(faces),
-                             tuple(bool(c) for c in z["closed"]), int(z["dropped"]))
-    except (OSError, ValueError, KeyError, EOFError):
+    """The cached parts at ``path``, verified (:mod:`.cache_entry`'s checksum, then what the
+    scene relies on: finite coordinates within the limits, each part's faces indexing its own
+    vertices); None when there is no entry. A DamagedEntry when any check fails."""
+    z = read_entry(path, MESH_ENTRY)
+    if z is None:
         return None
+    vertices, faces = z["vertices"], z["faces"]
+    vertex_ends, face_ends = z["vertex_ends"], z["face_ends"]
+    parts = len(z["names"])
+    if (vertices.shape[1:] != (3,) or faces.shape[1:] != (3,) or faces.dtype != np.int32
+            or vertices.dtype != np.float64 or len(z["closed"]) != parts
+            or len(vertex_ends) != parts or len(face_ends) != parts or parts == 0):
+        raise DamagedEntry("arrays of other shapes than a mesh's parts")
+    if (np.diff(vertex_ends, prepend=0) <= 0).any() or (np.diff(face_ends, prepend=0) <= 0).any() \
+            or vertex_ends[-1] != len(vertices) or face_ends[-1] != len(faces) or z["dropped"] < 0:
+        raise DamagedEntry("part bounds out of order")
+    if not (np.abs(vertices) <= MAX_COORDINATE).all():  # NaN fails it too
+        raise DamagedEntry("vertices not finite or beyond the coordinate limit")
+    split_vertices = np.split(vertices, vertex_ends[:-1])
+    split_faces = np.split(faces, face_ends[:-1])
+    for v, f in zip(split_vertices, split_faces):
+        if f.min() < 0 or f.max() >= len(v):
+            raise DamagedEntry("faces index past their part's vertices")
+    return MeshParts(tuple(str(n) for n in z["names"]), tuple(split_vertices),
+                     tuple(split_faces), tuple(bool(c) for c in z["closed"]), int(z["dropped"]))
 
 
 def _write_cache(path: Path, parts: MeshParts) -> None:
-    """Written whole to a temporary file and renamed, so a reader never sees half of it; a
-    cache that cannot be written (full disk, read-only) only costs the next load its time."""
+    """Written whole and renamed (:func:`.cache_entry.write_entry`), so a reader never sees half
+    of it; a cache that cannot be written (full disk, read-only) only costs the next load its
+    time."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_suffix(f".{os.getpid()}.tmp")
-        with open(temporary, "wb") as f:
-            np.savez(f, names=np.array(parts.names), closed=np.array(parts.closed),
-                     dropped=parts.dropped, vertices=np.concatenate(parts.vertices),
-                     faces=np.concatenate(parts.faces),
-                     vertex_ends=np.cumsum([len(v) for v in parts.vertices]),
-                     face_ends=np.cumsum([len(f) for f in parts.faces]))
-        os.replace(temporary, path)
+        write_entry(path, {"names": np.array(parts.names), "closed": np.array(parts.closed),
+                           "dropped": np.int64(parts.dropped),
+                           "vertices": np.concatenate(parts.vertices),
+                           "faces": np.concatenate(parts.faces),
+                           "vertex_ends": np.cumsum([len(v) for v in parts.vertices]),
+                           "face_ends": np.cumsum([len(f) for f in parts.faces])})
     except OSError:
         pass
 

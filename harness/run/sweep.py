@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from .. import results
+from ..config.cache_entry import take_rebuilt_notes
 from .manifest import MANIFEST_FILE, SPACE_RESERVE, SPACE_RESERVE_BYTES, read_manifest, write_manifest
 from .measure import run_group
 from .plan import Plan, RunSpec
@@ -123,7 +124,9 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
         context = get_context(platform_name)
         # the id tells this invocation's entry from others started in the same second
         session = {"id": os.urandom(4).hex(), "started": _now(), "finished": None,
-                   "status": "running", "runs_pending": len(pending), "runs_rendered": 0}
+                   "status": "running", "runs_pending": len(pending), "runs_rendered": 0,
+                   # one line per damaged cache entry built again, planning's included
+                   "notes": take_rebuilt_notes()}
         results.replace_atomically(out_dir / SPACE_RESERVE,
                                    lambda f: f.write(bytes(SPACE_RESERVE_BYTES)))
         write_manifest(out_dir, plan, context, session)
@@ -135,6 +138,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
         try:
             for spec, row in renderer(plan, pending, out_dir, context, progress):
                 raise_if_interrupted()
+                session["notes"] += take_rebuilt_notes()
                 session["runs_rendered"] += 1
                 failed += row["status"] == "error"
                 progress.run_done(spec, row)
@@ -155,6 +159,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
             raise
         finally:
             bar.close()
+            session["notes"] += take_rebuilt_notes()
             session["finished"] = _now()
             write_manifest(out_dir, plan, context, session)
             (out_dir / SPACE_RESERVE).unlink(missing_ok=True)
