@@ -289,7 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
                         "(default: the experiment's, else order)")
     q.add_argument("--max-runs", metavar="N",
-                   help="refuse a plan of more runs (default: the experiment's, else 5000)")
+                   help="refuse a plan of more runs (default: the experiment's, else 5000; at "
+                        "most 1000000)")
     q.add_argument("--cost", metavar="POLICY",
                    help="dynamic (every frame pays for what depends on the light and the "
                         "geometry) or static (that is done once, reported as setup_ms; "

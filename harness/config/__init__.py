@@ -11,7 +11,8 @@ are in :mod:`harness.config.limits`.
 
 from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, SceneSettings,
                                 load_experiment, with_timing)
-from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV, NAME_PATTERN
+from .limits import (DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MAX_RUNS, MIN_FOV,
+                     NAME_PATTERN)
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
 from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule,
                            Coordinate, Cylinder, DirectionalLight, Family, FieldOfView, Lathe,
@@ -27,7 +28,7 @@ __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
     "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "Family", "FieldOfView", "Grid", "Lathe",
     "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",
-    "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "MeshParts", "Motion", "NAME_PATTERN",
+    "MAX_RUNS", "MAX_YAML_NODES", "MIN_DOLLY", "MIN_FOV", "MeshFile", "MeshParts", "Motion", "NAME_PATTERN",
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
     "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "TriangleCount", "Vec3",

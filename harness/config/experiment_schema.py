@@ -10,7 +10,7 @@ from typing import Literal, Union
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..timing import STATISTICS
-from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET
+from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET, MAX_RUNS
 from .scene_schema import SquareInt, Strict, TriangleCount
 from .yaml_source import ConfigError, _line_of, format_validation_error, key_error, read_yaml
 
@@ -139,6 +139,14 @@ class Experiment(Strict):
         for name, grids in v.items():
             if isinstance(grids, list) and not grids:
                 raise ValueError(f"{name}: empty list of grids")
+        return v
+
+    @field_validator("max_runs")
+    @classmethod
+    def _hard_limit(cls, v):
+        if v > MAX_RUNS:
+            raise ValueError(f"must be at most {MAX_RUNS:,}, the hard limit (harness/config/"
+                             f"limits.py); split the experiment instead, got {v:,}")
         return v
 
     @field_validator("triangles")

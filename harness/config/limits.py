@@ -18,7 +18,9 @@ Every number must be finite, and within what the renderers can represent:
   included), shadow volumes' per-triangle volumes at 3.3 GiB. A family's size counts as its
   target (it lands at most there);
 - a plan's runs at most ``DEFAULT_MAX_RUNS`` (5,000: about three hours at 2 s a run), or the
-  experiment's ``max_runs`` (the command line's ``--max-runs``);
+  experiment's ``max_runs`` (the command line's ``--max-runs``), itself at most ``MAX_RUNS``
+  (1,000,000: about three weeks at 2 s a run, and a plan of that many RunSpecs already takes a
+  few GiB). The planner counts a plan's runs from the grids' sizes before it makes any;
 - scene names (they name folders under ``--out``) from ``NAME_PATTERN``: letters, digits,
   ``_``, ``-`` and ``.``, not starting with ``.``, at most 64 characters.
 """
@@ -29,6 +31,7 @@ MAX_COORDINATE = 1e7
 MAX_DEPTH_RATIO = 2 ** 20
 DEFAULT_TRIANGLE_BUDGET = 1_000_000
 DEFAULT_MAX_RUNS = 5_000
+MAX_RUNS = 1_000_000
 # degrees; no one benchmarks a narrower view, and toward 0 the projection's 1 / tan(fov / 2)
 # overflows float32
 MIN_FOV = 0.01

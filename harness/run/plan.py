@@ -186,15 +186,26 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                          for i, grid in enumerate(items)]
         return out
 
-    planned = len(exp.resolutions or [None]) * sum(
-        len(grid_points(registered[tech], grid, loc, exp_path, node))
-        if grid.curve is not None else grid.count()
-        for scene_name in wanted_scenes
-        for tech, tech_grids in scene_grids(scene_name).items() for grid, loc in tech_grids)
+    # counted from the grids' sizes, in constant memory, before any run is made
+    resolutions = len(exp.resolutions or [None])
+    planned, largest, largest_loc = 0, 0, ()
+    for scene_name in wanted_scenes:
+        for tech, tech_grids in scene_grids(scene_name).items():
+            for grid, loc in tech_grids:
+                count = resolutions * (len(grid_points(registered[tech], grid, loc, exp_path, node))
+                                       if grid.curve is not None else grid.count())
+                planned += count
+                if count > largest:
+                    largest, largest_loc = count, loc
     if planned > exp.max_runs:
+        line = cfg._line_of(node, largest_loc) if node is not None else None
+        worst = (f"; {'.'.join(map(str, largest_loc))}{f' (line {line})' if line else ''} gives "
+                 f"{'all' if largest == planned else f'{largest:,}'} of them")
+        fix = (f"raise it with max_runs: in the experiment or --max-runs on the command line "
+               f"(at most {cfg.MAX_RUNS:,})" if planned <= cfg.MAX_RUNS else
+               f"that is over the hard limit of {cfg.MAX_RUNS:,} runs: split the experiment")
         raise cfg.ConfigError(f"{exp_path}: plans {planned:,} runs, more than the limit of "
-                              f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
-                              "or --max-runs on the command line")
+                              f"{exp.max_runs:,} (max_runs){worst}; {fix}")
     if exp.cost == "static":
         _check_static(wanted_scenes, all_scenes, exp_path, node,
                       from_option=bool(timing and timing.get("cost")))
