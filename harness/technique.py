@@ -36,10 +36,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 from OpenGL import GL
-from pydantic import BaseModel, ConfigDict
+from pydantic import ConfigDict
 
 from . import metrics
-from .config import LIGHT_TYPES
+from .config import LIGHT_TYPES, TypesAsWritten
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
 from .gl.geometry import FullscreenTriangle, SceneMesh
@@ -54,7 +54,7 @@ class NotApplicable(Exception):
     """Raised by ``prepare`` when the technique does not apply to a scene (status=skipped)."""
 
 
-class TechniqueParams(BaseModel):
+class TechniqueParams(TypesAsWritten):
     """Base of every ``Params`` model: unknown names are errors, values are validated."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)

@@ -89,11 +89,15 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
     except ValidationError as e:
         first = e.errors()[0]
         name = ".".join(str(p) for p in first["loc"]) or "(parameters)"
+        problem = first["msg"].removeprefix("Value error, ")
+        key, sep, rest = problem.partition(": ")
+        if not first["loc"] and sep and key in cls.Params.model_fields:  # a check naming its key
+            name, problem = key, rest
         allowed = ", ".join(cls.Params.model_fields)
         if first["type"] == "extra_forbidden":
             msg = f"{technique} has no parameter {name!r}; allowed: {allowed}"
         else:
-            msg = f"{technique}.{name}: {first['msg'].removeprefix('Value error, ')}"
+            msg = f"{technique}.{name}: {problem}"
         raise cfg.ConfigError(f"{where}: {msg}") from None
     for name, value in params.model_dump().items():  # "1e999" and .inf validate as float inf
         if isinstance(value, float) and not math.isfinite(value):
