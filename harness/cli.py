@@ -247,7 +247,11 @@ def cmd_compare(args) -> int:
                              tolerance=args.tolerance)
     print(compare.text(result, only_changed=args.only_changed))
     if args.html:
-        print(f"page: {compare.write_html(result, args.html).resolve()}", file=sys.stderr)
+        try:
+            page = compare.write_html(result, args.html)
+        except OSError as e:  # named as the user wrote it
+            raise OSError(e.errno, e.strerror, f"--html {args.html}") from None
+        print(f"page: {page.resolve()}", file=sys.stderr)
     return 1 if result.worse else 0
 
 

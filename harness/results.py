@@ -68,6 +68,8 @@ def replace_atomically(path: str | Path, write) -> None:
             break
         except FileExistsError:
             continue
+        except OSError as e:  # named by the path asked for, never by our temporary file
+            raise OSError(e.errno, e.strerror, str(path)) from e
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -76,7 +78,7 @@ def replace_atomically(path: str | Path, write) -> None:
         os.replace(tmp, path)
     except BaseException as e:
         tmp.unlink(missing_ok=True)
-        if isinstance(e, OSError) and e.filename is None:
+        if isinstance(e, OSError) and e.filename in (None, str(tmp)):
             raise OSError(e.errno, e.strerror, str(path)) from e
         raise
 

@@ -6,8 +6,10 @@ it is loaded, and every number and index in it is usable."""
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import os
+import urllib.parse
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,8 +18,8 @@ import numpy as np
 
 from .cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from .limits import MAX_COORDINATE
-from .mesh_formats import (check_numbers, check_vertices, declared_triangles, mesh_format,
-                           read_parts)
+from .mesh_formats import (_gltf_json, check_numbers, check_vertices, declared_triangles,
+                           mesh_format, read_parts)
 from .yaml_source import check_regular_file, key_error
 
 if TYPE_CHECKING:
@@ -89,6 +91,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     fmt = mesh_format(mesh_path)
     declared_triangles(data, fmt)  # a lying header is named before trimesh misreads it
     check_numbers(data, fmt)
+    if fmt in ("gltf", "glb"):
+        _check_data_uris(_gltf_json(data, fmt))
     try:
         found = read_parts(mesh_path, fmt)
     except ValueError:
@@ -98,6 +102,9 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
         raise ValueError("not a mesh file trimesh can read (neither its binary format nor "
                          "UTF-8 text)") from None
     except Exception as e:  # trimesh raises many kinds for a bad file
+        if not str(e).strip():  # a bare assert inside trimesh says nothing of the file
+            raise ValueError(f"not a {fmt.upper()} file trimesh can read (it stopped at a "
+                             "check of its own without saying which)") from None
         raise ValueError(" ".join(f"{type(e).__name__}: {e}".split())[:300]) from None
     finally:
         raise_if_interrupted()  # trimesh catches BaseException in places, Ctrl-C included
@@ -126,6 +133,26 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     if not faces:
         raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
     return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped)
+
+
+def _check_data_uris(gltf: dict) -> None:
+    """Each glTF buffer written inline (a ``data:`` URI) holds at least its ``byteLength``
+    bytes (trimesh's own check is an assert with no message)."""
+    buffers = gltf.get("buffers", [])
+    for i, buffer in enumerate(buffers if isinstance(buffers, list) else ()):
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if not isinstance(uri, str) or not uri.startswith("data:"):
+            continue
+        header, _, payload = uri.partition(",")
+        try:
+            held = len(base64.b64decode(payload, validate=True) if header.endswith(";base64")
+                       else urllib.parse.unquote_to_bytes(payload))
+        except ValueError:  # binascii.Error is one
+            raise ValueError(f"buffers.{i}: its data URI is not valid base64") from None
+        length = buffer.get("byteLength")
+        if isinstance(length, int) and held < length:
+            raise ValueError(f"buffers.{i}: its data URI holds {held:,} bytes, fewer than its "
+                             f"byteLength of {length:,}")
 
 
 def _merge_duplicates(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
