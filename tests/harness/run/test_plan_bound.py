@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 SCENE = {"resolution": [32, 32],
          "camera": {"position": [0, -6, 4], "target": [0, 0, 0], "yfov": 60},
          "light": {"type": "directional", "direction": [-0.3, 0.2, -1]},
