@@ -1,16 +1,16 @@
 """Planning stays bounded: max_runs has a hard limit (harness.config.limits.MAX_RUNS, 10^6),
 and a plan of 10^12 combinations is counted, not made, before it is refused. Each check runs
-``shadowbench run`` in a subprocess and bounds its peak resident memory (getrusage's
-ru_maxrss): what planning adds to the process once harness.run is imported, and the whole
-process. The imports alone (trimesh, pyrender, scipy through harness.scene and
-harness.technique) peak at about 185 MB on the development machine, so the whole is bounded at
-256 MB and planning's own share at 32 MB. The address space is capped at 3 GiB so that a broken
-planner fails fast instead of taking the machine's memory. Times are printed, not asserted."""
+``shadowbench run`` in a subprocess and bounds its peak resident memory (VmHWM): what planning
+adds to the process once harness.run is imported, and the whole process. The imports alone
+(trimesh, pyrender, scipy through harness.scene and harness.technique) peak at about 185 MB
+on the development machine, so the whole is bounded at 256 MB and planning's own share at
+32 MB. The address space is capped at 3 GiB so that a broken planner fails fast instead of
+taking the machine's memory. Times are printed, not asserted."""
 
 from __future__ import annotations
 
 import json
-import resource
+import resource  # the address-space cap
 import subprocess
 import sys
 from pathlib import Path
@@ -27,15 +27,20 @@ SCENE = {"resolution": [32, 32],
 # six of pcf's parameters, 100 values each: 10^12 combinations
 PRODUCT = {name: [i * 1e-3 for i in range(1, 101)] for name in (
     "res_factor", "min_size", "bias_min", "bias_max", "slope_bias", "normal_offset")}
+# VmHWM, this process's own peak: getrusage's ru_maxrss also counts the parent's RSS at fork
 MEASURE = """
-import json, resource, sys, time
+import json, re, sys, time
+from pathlib import Path
 from harness import cli, run
-floor = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+def peak_mb():
+    return int(re.search(r"VmHWM:\\s*(\\d+)", Path("/proc/self/status").read_text())[1]) / 1024
+
+floor = peak_mb()
 started = time.perf_counter()
 code = cli.main(sys.argv[1:])
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-print(json.dumps({"code": code, "seconds": time.perf_counter() - started, "peak_mb": peak,
-                  "planning_mb": peak - floor}))
+print(json.dumps({"code": code, "seconds": time.perf_counter() - started, "peak_mb": peak_mb(),
+                  "planning_mb": peak_mb() - floor}))
 """
 ADDRESS_SPACE = 3 << 30
 
