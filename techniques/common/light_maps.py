@@ -8,9 +8,18 @@ from pathlib import Path
 import numpy as np
 from OpenGL import GL
 
+from harness.config import MAX_COORDINATE
 from harness.gl.framebuffer import Framebuffer, Texture
 from harness.technique import Frame, Technique
 from harness.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_light
+
+# Upper bounds of the map techniques' length-like knobs, stated in each one's table: a constant
+# bias in scene units at most MAX_COORDINATE (no scene is larger: harness.config.limits);
+# slope_bias and normal_offset, which reach that many texels of the map, at most MAX_TEXELS (at
+# 64 texels a 256-texel map's bias spans a quarter of the map: a typo, never a setting;
+# normal_offset 1e9 took every shadow away without a word).
+MAX_BIAS = MAX_COORDINATE
+MAX_TEXELS = 64.0
 
 # Clear value of the map: "no occluder in this texel", so every receiver there is lit.
 EMPTY_DEPTH = 3.0e38

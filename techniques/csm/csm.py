@@ -16,7 +16,8 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import EMPTY_DEPTH, LightDepthMap, depth_precision
+from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, LightDepthMap,
+                                          depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay
@@ -124,9 +125,9 @@ _Params = create_model(
     **{"lambda": (float, Field(0.5, ge=0, le=1))},
     fit=(Literal["frustum", "sdsm"], "frustum"),
     stabilize=(bool, False),
-    bias=(float, Field(0.02, ge=0)),
-    slope_bias=(float, Field(1.0, ge=0)),
-    normal_offset=(float, Field(0.0, ge=0)),
+    bias=(float, Field(0.02, ge=0, le=MAX_BIAS)),
+    slope_bias=(float, Field(1.0, ge=0, le=MAX_TEXELS)),
+    normal_offset=(float, Field(0.0, ge=0, le=MAX_TEXELS)),
 )
 
 
@@ -164,10 +165,10 @@ class CascadedShadowMap(Technique):
                        frustum; ``sdsm``: the visible depths and each
                        slice's visible receivers (GPU reductions)
     ``stabilize``      bounding-sphere cascades snapped to whole texels  false     true, false
-    ``bias``           constant depth bias, scene units                  0.02      >= 0
-    ``slope_bias``     times the receiver plane's depth slope x the      1.0       >= 0
+    ``bias``           constant depth bias, scene units                  0.02      0 .. 1e7
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0       0 .. 64
                        distance to the texel read, texels
-    ``normal_offset``  moves the point along its light-facing normal     0.0       >= 0
+    ``normal_offset``  moves the point along its light-facing normal     0.0       0 .. 64
                        before the read: this many x the texel's world
                        size in the pixel's cascade x sin(the light's
                        angle); the cascade stays the unmoved point's

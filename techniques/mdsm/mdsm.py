@@ -17,7 +17,7 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import FilteredShadowMap, Sampling
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, FilteredShadowMap, Sampling
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
 
@@ -124,11 +124,11 @@ class MultipleDepthShadowMap(Technique):
     ``q``              selection window samples, a square                9        4, 9, 16, 25
     ``select``         ``minmax`` (n <= 3) or ``sort``                   minmax
     ``extra``          n = 2 with minmax only: ``max`` or ``min``        max      max, min
-    ``bias``           constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+    ``bias``           constant depth bias, scene units                  0.02     0 .. 1e7
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      0 .. 64
                        distance to the farthest texel a depth may come
                        from
-    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+    ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
     =================  ================================================  =======  ================
@@ -152,9 +152,9 @@ class MultipleDepthShadowMap(Technique):
         # meaningful for n = 2 with minmax only; a concrete default so one configuration has
         # one run id
         extra: Literal["max", "min"] = "max"
-        bias: float = Field(0.02, ge=0)
-        slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(0.0, ge=0)
+        bias: float = Field(0.02, ge=0, le=MAX_BIAS)
+        slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
 
         @field_validator("n", "k", "q", mode="wrap")
         @classmethod

@@ -11,7 +11,7 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import FilteredShadowMap, Sampling
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, FilteredShadowMap, Sampling
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
 
@@ -45,9 +45,9 @@ class PercentageCloserFiltering(Technique):
     texels of its neighbours' directions on every side (half the largest region), so no
     sample of a point near a face's edge falls off its face.
 
-    =================  ===============================================  =========  ===========
+    =================  ===============================================  =========  ===============
     Parameter          Meaning                                          Default    Range
-    =================  ===============================================  =========  ===========
+    =================  ===============================================  =========  ===============
     ``res``            map width and height, texels                     1024       16 .. 8192
     ``k``              samples per pixel (NumSamples), a square         16         1 .. 64
     ``sampling``       ``grid`` or ``jitter`` (stratified)              grid
@@ -56,15 +56,15 @@ class PercentageCloserFiltering(Technique):
                        fixed: sub-region side, texels
     ``min_size``       footprint: smallest region side, texels          1.0        (0, 64]
                        (MinSize)
-    ``bias_min``       smallest per-sample bias, scene units (Bias0)    0.02       >= 0
-    ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
-    ``slope_bias``     times the receiver plane's depth slope x each    1.0        >= 0
+    ``bias_min``       smallest per-sample bias, scene units (Bias0)    0.02       0 .. 1e7
+    ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       bias_min .. 1e7
+    ``slope_bias``     times the receiver plane's depth slope x each    1.0        0 .. 64
                        sample's distance to its texel, texels
-    ``normal_offset``  moves the point along its light-facing normal    0.0        >= 0
+    ``normal_offset``  moves the point along its light-facing normal    0.0        0 .. 64
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
     ``seed``           seed of the jitter and bias draws                0          >= 0
-    =================  ===============================================  =========  ===========
+    =================  ===============================================  =========  ===============
     """
 
     name = "pcf"
@@ -82,10 +82,10 @@ class PercentageCloserFiltering(Technique):
         region: Literal["footprint", "fixed"] = "footprint"
         res_factor: float = Field(1.0, gt=0, le=64)
         min_size: float = Field(1.0, gt=0, le=64)
-        bias_min: float = Field(0.02, ge=0)
-        bias_max: float = Field(0.04, ge=0)
-        slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(0.0, ge=0)
+        bias_min: float = Field(0.02, ge=0, le=MAX_BIAS)
+        bias_max: float = Field(0.04, ge=0, le=MAX_BIAS)
+        slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
         seed: int = Field(0, ge=0, lt=2**32)
 
         @model_validator(mode="after")

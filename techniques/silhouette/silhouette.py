@@ -15,7 +15,7 @@ from harness.gl.shaders import Program
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import LightFrustum, fit_light
 
-from techniques.common.light_maps import LightDepthMap
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
 from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh
 
 HERE = Path(__file__).parent
@@ -83,10 +83,10 @@ class SilhouetteMap(Technique):
     Parameter           Meaning                                         Default  Range
     ==================  ==============================================  =======  ===========
     ``res``             width and height of both maps, texels           1024     16 .. 8192
-    ``bias``            constant depth bias, scene units                0.02     >= 0
-    ``slope_bias``      times the receiver plane's depth slope x each   1.0      >= 0
+    ``bias``            constant depth bias, scene units                0.02     0 .. 1e7
+    ``slope_bias``      times the receiver plane's depth slope x each   1.0      0 .. 64
                         corner's distance, texels
-    ``normal_offset``   moves the shaded point along its light-facing   0.0      >= 0
+    ``normal_offset``   moves the shaded point along its light-facing   0.0      0 .. 64
                         normal before its tests, by this many x the
                         texel's world size there x the sine of the
                         light's angle
@@ -107,9 +107,9 @@ class SilhouetteMap(Technique):
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
-        bias: float = Field(0.02, ge=0)
-        slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(0.0, ge=0)
+        bias: float = Field(0.02, ge=0, le=MAX_BIAS)
+        slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
         center_points: bool = False
 
     def prepare(self, frame: Frame) -> None:

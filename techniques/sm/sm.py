@@ -8,7 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MapShading
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, MapShading
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 
@@ -30,10 +30,10 @@ class ShadowMap(Technique):
     Parameter          Meaning                                           Default  Range
     =================  ================================================  =======  ===========
     ``res``            map (a cube face's) width and height, texels      1024     16 .. 8192
-    ``bias``           constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+    ``bias``           constant depth bias, scene units                  0.02     0 .. 1e7
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      0 .. 64
                        distance to the texel read, texels
-    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+    ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before the read: this many x the texel's world
                        size there x the sine of the light's angle
     =================  ================================================  =======  ===========
@@ -51,9 +51,9 @@ class ShadowMap(Technique):
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
-        bias: float = Field(0.02, ge=0)
-        slope_bias: float = Field(1.0, ge=0)
-        normal_offset: float = Field(0.0, ge=0)
+        bias: float = Field(0.02, ge=0, le=MAX_BIAS)
+        slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
 
     def prepare(self, frame: Frame) -> None:
         self.passes = MapShading(frame, self.params.res, SHADING)

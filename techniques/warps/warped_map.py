@@ -18,7 +18,7 @@ from harness import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import LightDepthMap
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
@@ -60,11 +60,11 @@ PARAMETER_TABLE = """
     Parameter          Meaning                                           Default  Range
     =================  ================================================  =======  ===========
     ``res``            map width and height, texels                      1024     16 .. 8192
-    ``bias``           constant depth bias, scene units                  0.02     >= 0
-    ``slope_bias``     times the receiver plane's depth slope x each     1.0      >= 0
+    ``bias``           constant depth bias, scene units                  0.02     0 .. 1e7
+    ``slope_bias``     times the receiver plane's depth slope x each     1.0      0 .. 64
                        read's distance, in the warped map's texels
                        (shadow_map.glsl)
-    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+    ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before its reads: this many x the warped map's
                        texel's world size there x sin(the light's angle)
     ``k``              PCF samples per pixel, a square grid of texels    1        1 .. 49
@@ -74,9 +74,9 @@ PARAMETER_TABLE = """
 
 class WarpParams(TechniqueParams):
     res: int = Field(1024, ge=16, le=8192)
-    bias: float = Field(0.02, ge=0)
-    slope_bias: float = Field(1.0, ge=0)
-    normal_offset: float = Field(0.0, ge=0)
+    bias: float = Field(0.02, ge=0, le=MAX_BIAS)
+    slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+    normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
     k: SquareInt = Field(1, le=49)
 
 
