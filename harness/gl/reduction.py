@@ -69,7 +69,11 @@ class CoveredRange:
         result = np.asarray(GL.glGetBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, _EMPTY.nbytes))
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
         GL.glUseProgram(0)
-        values = decode(result.view(np.uint32))
+        ordered = result.view(np.uint32)
+        # a component no pixel reached keeps its start value, which decodes to NaN: it is
+        # +inf (low) or -inf (high), so that an empty range says so (low > high)
+        values = np.where(ordered == _EMPTY, np.float32(np.inf) * np.where(_EMPTY > 0, 1, -1),
+                          decode(ordered)).astype(np.float32)
         return Range(values[:4], values[4:])
 
     def release(self) -> None:
