@@ -22,6 +22,7 @@ from pathlib import Path
 from .config import ConfigError
 from .interrupt import deferred
 from .run import Plan, RunSpec, record_run
+from .run.measure import return_freed_memory
 
 # Runs per task: interleaving needs several runs in one worker, spreading the sweep needs
 # several tasks per worker.
@@ -39,6 +40,7 @@ def _frame_on_worker(scene, frames: int, warmup: int):
         for frame, _, _ in _worker_frames.values():
             frame.release()
         _worker_frames.clear()
+        return_freed_memory()
         frame = Frame(scene)
         try:
             scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)

@@ -11,7 +11,7 @@ from pathlib import Path
 from .. import results
 from ..config.cache_entry import take_rebuilt_notes
 from .manifest import MANIFEST_FILE, SPACE_RESERVE, SPACE_RESERVE_BYTES, read_manifest, write_manifest
-from .measure import run_group
+from .measure import return_freed_memory, run_group
 from .plan import Plan, RunSpec
 from .score import failed_scene_row
 from .store import _exclusive, _now, record_run
@@ -205,3 +205,5 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
                 yield spec, row
         finally:
             frame.release()
+            del frame, reference
+            return_freed_memory()  # what the group left behind, before the next scene
