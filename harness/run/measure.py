@@ -171,7 +171,7 @@ def return_freed_memory() -> None:
     """Give the pages the C heap holds free back to the system, once a scene's group is done:
     glibc keeps what numpy's scene-sized temporaries (edges, volumes, maps read back) and the
     driver's threads freed in its heaps and per-thread arenas, so a sweep's resident memory grew
-    from scene to scene (4 families at 10^6, sm and silhouette: 1.27 GiB between groups, 0.74
+    from scene to scene (4 families at 10^6, sm and silhouette: 1.24 GiB between groups, 0.74
     with this). ``malloc_trim`` where the C library has it (glibc); elsewhere nothing."""
     import ctypes
     import ctypes.util
