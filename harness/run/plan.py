@@ -84,6 +84,10 @@ def parse_overrides(values: list[str]) -> dict[str, dict]:
 def validate_params(technique: str, values: dict, where: str) -> dict:
     """Validate against the technique's Params; errors name the technique and allowed names."""
     cls = registry.get(technique)
+    for name, value in values.items():  # before the ranges: .inf is not "more than 64"
+        if name in cls.Params.model_fields and isinstance(value, float) and not math.isfinite(value):
+            raise cfg.ConfigError(f"{where}: {technique}.{name}: must be a finite number, "
+                                  f"got {value!r}")
     try:
         params = cls.Params(**values)
     except ValidationError as e:
