@@ -2,7 +2,8 @@
 
 Exit codes: 0 all runs ok; 1 some runs failed (their rows say why), or the machine failed the
 command (a full disk: one line naming the file); 2 bad input (one line on stderr naming file
-and key; nothing written); 130 interrupted. Anything else is a bug: its traceback is printed
+and key, a line for each further error of a file, up to five; nothing written); 130
+interrupted. Anything else is a bug: its traceback is printed
 under a line asking to report it.
 """
 
@@ -358,7 +359,8 @@ def main(argv: list[str] | None = None) -> int:
                 traceback.print_exc()
                 return 1
             code, message = known
-            print(f"shadowbench: {_printable(message)}", file=sys.stderr)
+            for line in (message, *getattr(e, "more", ())):  # a file's further errors
+                print(f"shadowbench: {_printable(line)}", file=sys.stderr)
             return code
 
 
