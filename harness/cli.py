@@ -119,8 +119,9 @@ def cmd_plan(args) -> int:
     from . import listing
 
     plan = _plan(args)
-    stored = args.from_dir or args.out
-    print("\n".join(listing.plan_lines(plan, Path(stored) if stored else None)))
+    out = Path(args.out) if args.out else None
+    stored = Path(args.from_dir) if args.from_dir else out
+    print("\n".join(listing.plan_lines(plan, out, stored)))
     return 0
 
 

@@ -146,13 +146,18 @@ def inspect_lines(path: Path, name: str) -> list[str]:
     return lines
 
 
-def plan_lines(plan, stored: Path | None) -> list[str]:
+def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
     """The runs of ``plan`` grouped by scene (runs of each technique), the plan's notes, and the
-    time it would take from the runs stored in ``stored`` (see :func:`estimate`)."""
+    time the runs not yet in ``out`` would take, from the runs stored in ``stored`` (see
+    :func:`estimate`)."""
     from .results import read_rows
 
+    done = {r["run_id"] for r in (read_rows(out) if out is not None else [])
+            if r["status"] in ("ok", "skipped")}
+    todo = [spec for spec in plan.runs if spec.run_id not in done]
     lines = [f"{len(plan.runs)} runs (duplicate points merged) in {len(plan.scenes)} scenes, "
-             f"cost policy {plan.cost}:"]
+             f"cost policy {plan.cost}" + (f"; {len(plan.runs) - len(todo)} of them in {out} "
+                                           "already" if out is not None else "") + ":"]
     by_scene: dict[tuple, Counter] = {}
     for spec in plan.runs:
         by_scene.setdefault((spec.scene, spec.width, spec.height), Counter())[spec.technique] += 1
@@ -160,18 +165,18 @@ def plan_lines(plan, stored: Path | None) -> list[str]:
         lines.append(f"  {scene} {width}x{height}: {sum(counts.values())} runs: "
                      + ", ".join(f"{t} {n}" for t, n in counts.items()))
     lines += plan.notes
-    rows = read_rows(stored) if stored is not None else []
-    if not rows:
-        lines.append("time: no estimate (no stored runs to go by; give --from DIR, a folder an "
-                     "earlier run wrote)")
+    if not todo:
+        lines.append(f"time: none; every run is in {out} already")
         return lines
-    done = {r["run_id"] for r in rows if r["status"] in ("ok", "skipped")}
-    todo = [spec for spec in plan.runs if spec.run_id not in done]
-    seconds, matched = estimate(todo, rows, _wall_seconds(stored))
-    lines.append(f"time: about {_duration(seconds)} for the {len(todo)} runs not yet in {stored} "
-                 f"({len(plan.runs) - len(todo)} there already; {matched} of the {len(todo)} "
-                 "like a stored run, the rest at its median), at the pace the stored runs "
-                 "took on the machine that ran them")
+    rows = read_rows(stored) if stored is not None else []
+    seconds, matched = estimate(todo, rows, _wall_seconds(stored) if rows else None)
+    if not seconds:
+        lines.append("time: no estimate (no stored run like these; give --from DIR, a folder "
+                     "an earlier run of this experiment wrote)")
+        return lines
+    lines.append(f"time: about {_duration(seconds)} for the {len(todo)} runs to render "
+                 f"({matched} like a run stored in {stored}, the rest at those runs' median "
+                 "share), at the pace those runs took on the machine that ran them")
     return lines
 
 
@@ -190,7 +195,7 @@ def estimate(todo, rows: list[dict], wall: float | None) -> tuple[float, int]:
 
     ok = [(r, work(r)) for r in rows if r["status"] == "ok" and work(r) is not None]
     total = sum(w for _, w in ok)
-    if not ok or not total or not wall:
+    if not todo or not ok or not total or not wall:
         return 0.0, 0
     share = {(r["scene"], r["width"], r["height"], r["technique"],
               json.dumps(json.loads(r["params"] or "{}"), sort_keys=True)):
