@@ -126,6 +126,12 @@ class Array(Strict):
 
 
 class Placed(Strict):
+    """Where an object goes. Its vertices, in its own frame (a shape centred at its origin; a
+    mesh file's own coordinates, never recentred, turned first so that the file's ``up`` is
+    +z), are scaled (``scale``), then rotated about x, then y, then z (``rotate``, degrees),
+    then moved (``translate``); ``array`` copies the result. ``shadowbench list --scene NAME``
+    prints each object's bounds as placed."""
+
     name: str | None = Field(None, min_length=1)  # what an object motion may call it
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
