@@ -18,10 +18,10 @@ from __future__ import annotations
 from functools import lru_cache
 from importlib.metadata import entry_points
 
+from .code_version import GROUP
 from .config import ConfigError
 from .technique import Technique, check_declined_lights, check_quality_knobs, declares_baseline
 
-GROUP = "shadowbench.techniques"
 OWN_DISTRIBUTION = "shadowbench"  # the built-ins' (pyproject.toml); any other is a plugin
 
 

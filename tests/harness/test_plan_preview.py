@@ -6,13 +6,12 @@ import csv
 import json
 import re
 from datetime import datetime
-from pathlib import Path
 
 import pytest
 
 from harness.cli import main
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 SCENES = str(ROOT / "scenes.yaml")
 
 # sm's res curve (3 points) and pcf's two curves from res 256: res 256, 1024, 4096 at k 16 and

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 PLUGINS = ROOT / "tests" / "data" / "plugins"
 SHADOWBENCH = Path(sys.executable).with_name("shadowbench")
 SCENES = str(ROOT / "scenes.yaml")

@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 
 from harness import columns, results
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_the_page_is_the_schema():

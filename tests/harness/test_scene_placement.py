@@ -2,11 +2,10 @@
 are the default outside the repository; ``list --scene NAME`` prints each object's bounds as
 placed: scale, then rotate about x, then y, then z, then translate, never recentred."""
 
-from pathlib import Path
 
 from harness.cli import SHIPPED_SCENE_FILE, main
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 
 PLACED = """\
 scenes:

@@ -6,15 +6,14 @@ bounds. Checked for every registered technique and for the example plugin a new 
 import re
 import sys
 import typing
-from pathlib import Path
 
 import annotated_types as at
 import pytest
 from pydantic_core import PydanticUndefined
 
 from harness import registry
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def table(doc: str) -> dict[str, dict[str, str]]:
