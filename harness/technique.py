@@ -65,8 +65,9 @@ class ShadowOutput:
     fetches_per_px: float
     nonfinite: int = 0  # NaN/Inf seen in the technique's matrices
     # fragments of the shadow geometry when the technique counts them itself (e.g. shadow
-    # volumes drawn with the depth test off, DESIGN's overdraw O); else the harness sums the
-    # fragments of the measured passes
+    # volumes drawn with the depth test off: the silhouette-map paper's overdraw O, the
+    # `overdraw` column of docs/results.md); else the harness sums the fragments of the
+    # measured passes
     shadow_fragments: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # additional result columns
     # per-pixel diagnostic maps (float (H, W)), stored with the run and shown by the report
