@@ -183,13 +183,12 @@ def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
 def estimate(todo, rows: list[dict], wall: float | None) -> tuple[float, int]:
     """Seconds for the runs ``todo`` from stored rows: each stored ok run's share of the
     folder's wall time (``wall``: its invocations' durations) is in proportion to its frame
-    work ((warm-up + frames) x time_ms, setup_ms once); a planned run like a stored one (same
-    scene, size, technique, parameters) takes that share, scaled by its own frame count, and
-    any other the stored runs' median. Returns (seconds, runs matched)."""
+    work (frames x time_ms, plus setup_ms); a planned run like a stored one (same scene, size,
+    technique, parameters) takes that share, scaled by its own frame count, and any other the
+    stored runs' median share. Returns (seconds, runs matched)."""
     def work(row) -> float | None:
         try:
-            frames = int(row.get("frames") or 0) + int(row.get("warmup") or 1)
-            return frames * float(row["time_ms"]) + float(row.get("setup_ms") or 0)
+            return int(row["frames"]) * float(row["time_ms"]) + float(row.get("setup_ms") or 0)
         except (KeyError, ValueError):
             return None
 
