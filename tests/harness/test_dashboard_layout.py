@@ -178,6 +178,20 @@ def test_hiding_a_technique_places_the_labels_again(page, browser):
     assert browser.execute_script(OVERLAPS) == []
 
 
+def test_a_family_at_one_size_says_exponents_need_two(tmp_path, make_results):
+    """The Scale view over families run at one size each (make bench's folder): no exponent
+    table, a line saying a fit needs two sizes or more. Catches the view that fitted nothing
+    and showed an empty table without a word."""
+    make_results(tmp_path, [{"scene": f"{family}@1e+05", "family": family, "triangles": 100000,
+                             "time_ms": 2.0, "edge_mae": 0.05, "edge_floor": 0.04}
+                            for family in ("arch", "leaves")])
+    page = report.build_report(tmp_path).read_text()
+    view = " ".join(page[page.index('id="scale"'):page.index('id="scene-')].split())
+    assert ("Exponents need two sizes or more of a family: arch ran at one (100,000 triangles); "
+            "leaves ran at one (100,000 triangles), so no line is fitted") in view
+    assert 'class="exponents"' not in view
+
+
 # --- the tick chooser, run in the page's own script ----------------------------------------------
 
 CASES = {  # name: (values, log)
