@@ -142,9 +142,12 @@ const Charts = (() => {
 
   // Put ``text`` at the first anchor of ``anchors`` where its box (``m``, padded) is free;
   // remove it when none is. Returns whether it stayed.
+  const boxAt = ([x, y], m, pad) => [x + m.x - pad, y + m.y - pad, x + m.x + m.w + pad, y + m.y + m.h + pad];
+  const anchorOf = text => [Number(text.getAttribute("x")), Number(text.getAttribute("y"))];
+
   function place(text, m, anchors, space, pad = 1) {
     for (const [x, y] of anchors) {
-      const box = [x + m.x - pad, y + m.y - pad, x + m.x + m.w + pad, y + m.y + m.h + pad];
+      const box = boxAt([x, y], m, pad);
       if (space.free(box)) {
         text.setAttribute("x", x); text.setAttribute("y", y);
         space.take(box);
@@ -158,7 +161,7 @@ const Charts = (() => {
   // Anchors (for text-anchor start) around a point of radius r for a label of size m: upper
   // right first (where labels always went), then right, lower right, the left side, above, below.
   function around(px, py, r, m) {
-    const d = r + 2, dx = d * 0.75, left = v => v - m.w, top = v => v - (m.y + m.h), mid = py - m.y - m.h / 2;
+    const d = r + 3, dx = d * 0.8, left = v => v - m.w, top = v => v - (m.y + m.h), mid = py - m.y - m.h / 2;
     const bottom = v => v - m.y;
     return [[px + dx, top(py - dx)], [px + d, mid], [px + dx, bottom(py + dx)],
             [left(px - dx), top(py - dx)], [left(px - d), mid], [left(px - dx), bottom(py + dx)],
@@ -286,12 +289,8 @@ const Charts = (() => {
     }
     // one measuring layout for every text of the panel, then the collision pass
     const sizes = measure([...titles, ...ticks.map(t => t.node), ...labels.map(l => l.node)]);
-    const at = (node, m, pad) => {
-      const x = Number(node.getAttribute("x")), y = Number(node.getAttribute("y"));
-      return [[x + m.x - pad, y + m.y - pad, x + m.x + m.w + pad, y + m.y + m.h + pad], [x, y]];
-    };
-    titles.forEach((t, i) => space.take(at(t, sizes[i], 0)[0]));  // titles always stay
-    ticks.forEach((t, i) => place(t.node, sizes[2 + i], [at(t.node, sizes[2 + i], 0)[1]], space, 2));
+    titles.forEach((t, i) => space.take(boxAt(anchorOf(t), sizes[i], 0)));  // titles always stay
+    ticks.forEach((t, i) => place(t.node, sizes[2 + i], [anchorOf(t.node)], space, 2));
     const plot = makeSpace([left, top, left + iw, top + ih]);
     for (const [x, y, r] of points) if (r) plot.take([x - r, y - r, x + r, y + r]);
     const order = labels.map((l, i) => i).sort((a, b) => labels[b].front - labels[a].front);
