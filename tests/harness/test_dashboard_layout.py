@@ -200,6 +200,7 @@ CASES = {  # name: (values, log)
     "one value, log": ([1e5], True),
     "two values 1.2x apart, log": ([1000, 1200], True),
     "ten decades, log": ([1e-3, 1e7], True),
+    "just under the shortest log span": ([0.0364, 0.181], True),
     "close large values, log": ([100000, 100001], True),
     "one value, linear": ([7.0], False),
     "zero alone, linear": ([0.0], False),
@@ -226,12 +227,17 @@ def chooser(browser, tmp_path_factory):
 @pytest.mark.parametrize("name", CASES)
 @pytest.mark.parametrize("most", [4, 8, 16])
 def test_ticks_hold_for_any_data(chooser, name, most):
-    """At least two ticks, at most ``most``, inside the axis; the data inside the axis; labels
-    distinct and exact (a label read back as a number is its tick). Catches the old chooser's
-    `100000 100000 100000 1e+5` on one value and its rounded labels."""
+    """At least two ticks, at most ``most``, inside the axis; the data inside the axis, 5 % of
+    its span from either end (or at a zero the axis starts from); labels distinct and exact (a
+    label read back as a number is its tick). Catches the old chooser's `80000 90000 1e+5 1e+5
+    1e+5` around one value (tried), and an axis stretched to its shortest log span without its
+    padding (a point on the frame)."""
     values, log = CASES[name]
     a = chooser(values, log, most)
-    assert a["lo"] <= min(values) and max(values) <= a["hi"], a
+    at = (lambda v: math.log10(v)) if log else (lambda v: v)
+    margin = 0.05 * (at(a["hi"]) - at(a["lo"]))
+    assert at(a["lo"]) + margin <= at(min(values)) or a["lo"] == 0 == min(values), a
+    assert at(max(values)) <= at(a["hi"]) - margin, a
     assert 2 <= len(a["ticks"]) <= most, a
     assert all(a["lo"] <= t <= a["hi"] for t in a["ticks"]), a
     assert len(set(a["labels"])) == len(a["labels"]), a

@@ -94,14 +94,9 @@ const Charts = (() => {
     let lo = Math.min(...values), hi = Math.max(...values);
     most = Math.max(2, most);
     if (log) {
-      let a = Math.log10(lo), b = Math.log10(hi);
-      if (b - a < LOG_MIN_DECADES) {
-        const mid = (a + b) / 2;
-        a = mid - LOG_MIN_DECADES / 2; b = mid + LOG_MIN_DECADES / 2;
-      } else {
-        const pad = (b - a) * 0.06;
-        a -= pad; b += pad;
-      }
+      const mid = (Math.log10(lo) + Math.log10(hi)) / 2;
+      const half = Math.max((Math.log10(hi) - Math.log10(lo)) * 0.56, LOG_MIN_DECADES / 2);
+      const a = mid - half, b = mid + half;  // 6 % of the span each side, or more
       lo = 10 ** a; hi = 10 ** b;
       const ticks = logTicks(lo, hi, most);
       return {lo, hi, log, ticks, labels: tickLabels(ticks), at: v => (Math.log10(v) - a) / (b - a)};
