@@ -66,6 +66,11 @@ return [...view.querySelectorAll('.chart-facets')].map(row => {
           right: Math.max(...panels.map(p => p.right)) - box.right,
           panels: panels.map(p => p.width)};
 });"""
+# What the page would fetch beyond itself: any src or href that is not inline data or a fragment.
+REQUESTS = """
+return [...document.querySelectorAll('[src], [href]')]
+  .map(e => e.getAttribute('src') || e.getAttribute('href'))
+  .filter(u => u && !u.startsWith('data:') && !u.startsWith('#'));"""
 DRAWN = """
 const view = document.querySelector('section.view.shown');
 const boxes = [...view.querySelectorAll('.chart-box')];
@@ -136,11 +141,13 @@ def layout(driver, url: str) -> dict:
         wait(driver, DRAWN, f"the charts of {view}")
         found[view] = {WIDE: wide, NARROW: (driver.execute_script(OVERLAPS),
                                             driver.execute_script(WIDTHS))}
+    found["requests"] = driver.execute_script(REQUESTS)
     return found
 
 
 def test_every_view_fills_its_column_with_no_overlapping_label(page, browser):
     found = layout(browser, page.resolve().as_uri())
+    assert found.pop("requests") == []  # one self-contained file: nothing to fetch beyond it
     assert {"overview", "scale"} <= set(found) and sum(v.startswith("scene-") for v in found) == 4
     counts = {(view, width): len(o) for view, at in found.items() for width, (o, _) in at.items()}
     print("\noverlapping pairs per view and width:", counts)

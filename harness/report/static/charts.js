@@ -83,8 +83,11 @@ const Charts = (() => {
     const ordinary = [make([1, 2, 5]), make([1, 3]), make([1])];
     for (const every of [2, 3, 5, 10, 20, 50, 100]) ordinary.push(make([1], every));
     let ticks = ordinary.find(t => t.length <= most) || ordinary[ordinary.length - 1];
-    const dense = make([1, 2, 3, 4, 5, 6, 7, 8, 9]);
-    if (ticks.length < 3 && dense.length <= most && dense.length > ticks.length) ticks = dense;
+    if (ticks.length < 3) {  // less than a decade or two: the densest of these that fits
+      const denser = [[1, 2, 3, 4, 5, 6, 7, 8, 9], [1, 2, 3, 4, 5, 7], [1, 2, 3, 5]].map(m => make(m))
+        .find(t => t.length <= most && t.length > ticks.length);
+      if (denser) ticks = denser;
+    }
     return ticks.length >= 2 ? ticks : linearTicks(lo, hi, most);  // within a factor < 1.25
   }
 
