@@ -17,7 +17,7 @@ from .config import ConfigError
 
 SCHEMA_VERSION = 1
 
-# name -> type; these keep their names and meaning (DESIGN.md). Techniques may add columns.
+# name -> type; these keep their names and meaning (docs/results.md). Techniques may add columns.
 COLUMNS: dict[str, type] = {
     "run_id": str, "schema": int, "scene": str, "technique": str, "params": str,
     "family": str,
