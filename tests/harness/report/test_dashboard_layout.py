@@ -19,13 +19,14 @@ import os
 import re
 import shutil
 import time
+from pathlib import Path
 
 import pytest
-from helpers import ROOT
 
 from harness import report
 from harness.cli import main as shadowbench
 
+ROOT = Path(__file__).resolve().parents[3]  # the repository (run as a script too: main)
 CHROMIUM = os.environ.get("SHADOWBENCH_CHROMIUM", "/usr/bin/chromium")
 CHROMEDRIVER = os.environ.get("SHADOWBENCH_CHROMEDRIVER", "/usr/bin/chromedriver")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -274,3 +275,36 @@ def read(label: str) -> float:
         return float(label)
     mantissa = float(m[1]) if m[1] else -1.0 if m[2] else 1.0
     return mantissa * 10.0 ** int(m[3].translate(SUPER))
+
+
+def main(index: str) -> int:
+    """``python tests/harness/report/test_dashboard_layout.py DIR/index.html``: the
+    test's measurement on any built page: overlapping label pairs and chart widths per view and
+    width."""
+    import tempfile
+
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in FLAGS + [f"--user-data-dir={tempfile.mkdtemp()}", f"--window-size={WIDE},1000"]:
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    try:
+        found = layout(driver, Path(index).resolve().as_uri())
+    finally:
+        driver.quit()
+    print("names to fetch beyond itself:", found.pop("requests"))
+    for view, at in found.items():
+        for width, (pairs, charts) in at.items():
+            print(f"{view} at {width} px: {len(pairs)} overlapping pairs {pairs[:3]}; panels "
+                  f"{[(c['id'], round(c['container']), [round(p) for p in c['panels']]) for c in charts]}")
+    print("overlapping pairs in all:", sum(len(o) for at in found.values() for o, _ in at.values()))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main(sys.argv[1]))
