@@ -315,8 +315,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("dir")
     q.set_defaults(func=cmd_report)
 
-    q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER; "
-                                       "exit 1 when something got worse")
+    q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER, run by "
+                                       "run (a run in one folder only paired with the other's "
+                                       "of its scene, size and technique, its changed "
+                                       "parameters shown); exit 1 when something got worse")
     q.add_argument("before")
     q.add_argument("after")
     q.add_argument("--factor", type=float, default=1.1,

@@ -40,6 +40,8 @@ def replace_atomically(path: str | Path, write) -> None:
             break
         except FileExistsError:
             continue
+        except OSError as e:  # the user's path, not the temporary name they never gave
+            raise OSError(e.errno, e.strerror, str(path)) from e
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
