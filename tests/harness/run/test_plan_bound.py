@@ -65,9 +65,11 @@ def _plan(tmp_path: Path, experiment: dict, *more: str) -> tuple[dict, list[str]
 
 
 @pytest.mark.parametrize("max_runs, needles", [
-    (None, ("plans 1,000,000,000,000 runs, more than the limit of 5,000 (max_runs)",
+    (None, ("plans 1,000,000,000,000 runs before duplicate points are merged, far more than "
+            "the limit of 5,000 (max_runs)",
             "techniques.pcf (line", "gives all of them", "hard limit of 1,000,000")),
-    (1_000_000, ("plans 1,000,000,000,000 runs, more than the limit of 1,000,000",)),
+    (1_000_000, ("plans 1,000,000,000,000 runs before duplicate points are merged, far more "
+                 "than the limit of 1,000,000",)),
 ])
 def test_a_plan_of_10_to_the_12_runs_is_counted_and_refused(max_runs, needles, tmp_path):
     """Catches a planner that makes the runs before counting them (it took 1.5 GB in 7 s
