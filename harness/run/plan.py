@@ -213,7 +213,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                 raw += count
                 if count > largest:
                     largest, largest_loc = count, loc
-    if raw > max(4 * exp.max_runs, 10_000):
+    if raw > min(max(4 * exp.max_runs, 10_000), cfg.MAX_RUNS):  # the points are made next
         line = cfg._line_of(node, largest_loc) if node is not None else None
         worst = (f"; {'.'.join(map(str, largest_loc))}{f' (line {line})' if line else ''} gives "
                  f"{'all' if largest == raw else f'{largest:,}'} of them")

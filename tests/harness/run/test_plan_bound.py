@@ -100,3 +100,17 @@ def test_max_runs_has_a_hard_limit(where, tmp_path):
     assert result["code"] == 2 and len(err) == 1, err
     assert needle in err[0] and "10,000,000,000,000" in err[0], err
     assert result["planning_mb"] < 32 and result["peak_mb"] < 256, result
+
+
+def test_a_raw_count_over_the_hard_limit_is_refused_before_its_points_are_made(tmp_path):
+    """2 x 10^6 grid points with max_runs at the hard limit: the raw count (before duplicates
+    merge) is refused, not expanded. Catches a raw bound of 4 x max_runs alone, which made and
+    validated all 2 x 10^6 points (seen failing: the planner's memory grew past the bound)."""
+    product = {"bias_min": [i * 1e-4 for i in range(2000)],
+               "bias_max": [1.0 + i * 1e-3 for i in range(1000)]}
+    result, err = _plan(tmp_path, {"techniques": {"pcf": {"product": product}},
+                                   "max_runs": 1_000_000})
+    assert result["code"] == 2 and len(err) == 1, err
+    assert "plans 2,000,000 runs before duplicate points are merged" in err[0], err
+    assert "hard limit of 1,000,000 runs" in err[0], err
+    assert result["planning_mb"] < 32, result
