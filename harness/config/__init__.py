@@ -1,5 +1,6 @@
 """The scene file and experiment schema, validated at load. From the bottom up: limits,
-yaml_source, mesh_files, scene_schema, experiment_schema; each name is ``harness.config.X``.
+yaml_source, cache_entry (verified cache entries), mesh_formats, mesh_files, types_as_written,
+scene_schema, experiment_schema; each name is ``harness.config.X``.
 
 Every problem is a :class:`ConfigError` whose one-line message names the file, the key path
 and (where the YAML has it) the line, e.g.

@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Literal, Union, get_args
 
 import numpy as np
-from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field,
+from pydantic import (AfterValidator, BeforeValidator, ConfigDict, Field,
                       ValidationError, field_validator, model_validator)
 
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
 from .mesh_files import check_mesh
+from .types_as_written import TypesAsWritten
 from .yaml_source import check_name, key_error, read_yaml, validation_error
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
@@ -38,43 +39,6 @@ def square_number(value: int) -> int:
 
 SquareInt = Annotated[int, AfterValidator(square_number)]
 
-
-
-def _admits_bool(annotation) -> bool:
-    """Whether a field of this type may hold true or false (bool, Literal[True], a union or
-    container with one of them)."""
-    if annotation is bool or annotation is Any:
-        return True
-    if get_origin(annotation) is Literal:
-        return any(isinstance(arg, bool) for arg in get_args(annotation))
-    return any(_admits_bool(arg) for arg in get_args(annotation))
-
-
-def _first_bool(value) -> bool | None:
-    """The first boolean in ``value`` or the lists within it; None when there is none."""
-    if isinstance(value, bool):
-        return value
-    for item in value if isinstance(value, (list, tuple)) else ():
-        if (found := _first_bool(item)) is not None:
-            return found
-    return None
-
-
-class TypesAsWritten(BaseModel):
-    """A boolean where a number, an index or a name is expected is refused: pydantic would
-    otherwise read ``true`` as 1 (``object: true`` as object 1). Strict mode everywhere would
-    also refuse YAML's lists for tuples, so this checks booleans alone."""
-
-    @model_validator(mode="before")
-    @classmethod
-    def _no_booleans(cls, data):
-        for name, value in data.items() if isinstance(data, dict) else ():
-            field = cls.model_fields.get(name)
-            found = _first_bool(value) if field is not None else None
-            if found is not None and not _admits_bool(field.annotation):
-                raise ValueError(f"{name}: {str(found).lower()} is a boolean; a number, index or "
-                                 "name is expected here")
-        return data
 
 
 class Strict(TypesAsWritten):
