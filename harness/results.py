@@ -41,6 +41,8 @@ COLUMNS: dict[str, type] = {
     "world_changed_pct_max": float,
     "nonfinite": float, "v_min": float, "v_max": float,
     "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
+    # what the scene's mesh files hold that defines no triangle, one line per file
+    "mesh_notes": str,
     "code_version": str, "ref_samples": int, "ref_seconds": float,
     "ref_build_seconds": float, "array": str,
     "reference_array": str,
