@@ -135,13 +135,15 @@ class ObjLines:
         that start parts; and the faces of fewer than 3 vertices, skipped."""
         lines = self.starting(b"f")
         text, place = self.text(lines, b"f")
-        position = np.arange(len(text))
         blank = _blank(text)
-        # a face's texture and normal indices (after '/') are blanked: vertex indices are left
-        after_slash = (np.maximum.accumulate(np.where(text == ord("/"), position, -1))
-                       > np.maximum.accumulate(np.where(blank, position, -1)))
-        text = np.where(after_slash, ord(" "), text).astype(np.uint8)
-        blank = _blank(text)
+        slash = text == ord("/")
+        if slash.any():
+            # a face's texture and normal indices (after '/') are blanked: vertex indices are left
+            position = np.arange(len(text), dtype=np.int32 if len(text) < 2 ** 31 else np.int64)
+            after_slash = (np.maximum.accumulate(np.where(slash, position, -1))
+                           > np.maximum.accumulate(np.where(blank, position, -1)))
+            text[after_slash] = ord(" ")
+            blank |= after_slash
         token_line = self.line_of(place[~blank & np.r_[True, blank[:-1]]])
         words = text.tobytes().split()
         try:
@@ -212,14 +214,15 @@ def read_obj(data: bytes) -> tuple[list[tuple[str, np.ndarray, np.ndarray]], dic
     lines = ObjLines(data)
     numbers, vertices = lines.vectors(b"v", "vertex")
     triangles, part, starts, short = lines.faces()
-    used = np.unique(triangles)  # a vertex no face uses may be anything
+    used = np.flatnonzero(np.bincount(triangles.ravel(), minlength=len(vertices)))
+    # a vertex no face uses may be anything
     finite(vertices[used], lambda row: f"line {numbers[used[row]]}: vertex")
     skipped = {SHORT_FACES: short} if short else {}
     skipped.update(lines.skipped())
     order = np.argsort(part, kind="stable")
     bounds = np.searchsorted(part[order], np.arange(len(starts) + 2))
     parts = []
-    for p in np.unique(part):  # per part, not per triangle
+    for p in np.flatnonzero(np.bincount(part)):  # per part, not per triangle
         faces = triangles[order[bounds[p]:bounds[p + 1]]]
         name = lines.name(starts[p - 1]) if p else ""
         parts.append((name or f"part{p}", vertices, faces))
