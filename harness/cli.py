@@ -127,7 +127,7 @@ def cmd_list(args) -> int:
             for obj in scene.objects:
                 if isinstance(obj, config.MeshFile):
                     parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
-                    print(f"      mesh {obj.path}: {parts.summary()}")
+                    print(f"      mesh {obj.label}: {parts.summary()}")
     else:
         print(f"scenes: no scene file at {path}")
     return 0

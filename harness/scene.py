@@ -146,7 +146,7 @@ class BuiltScene:
             if isinstance(obj, cfg.MeshFile):
                 path = cfg.resolve_mesh_path(self.source or Path("."), obj)
                 if note := cfg.mesh_parts(path, obj.up).notes():
-                    notes.append(f"{obj.path}: {note}")
+                    notes.append(f"{obj.label}: {note}")
         return "\n".join(notes)
 
     def _sharing_geometry(self, scene: "BuiltScene") -> "BuiltScene":

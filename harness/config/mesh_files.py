@@ -73,8 +73,23 @@ def skipped_note(skipped: dict[str, int]) -> str:
 
 
 def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
+    """The file: relative to the scene file's folder, or to the folder of the installed package
+    ``obj.package`` (found by importlib without importing it); a ValueError when no such
+    package is installed."""
     p = Path(obj.path)
+    if obj.package is not None:
+        return package_folder(obj.package) / p
     return p if p.is_absolute() else Path(scene_path).parent / p
+
+
+def package_folder(package: str) -> Path:
+    import importlib.util
+
+    spec = importlib.util.find_spec(package)  # a top-level name: nothing is imported
+    if spec is None or not spec.submodule_search_locations:
+        raise ValueError(f"no installed package {package!r} (the corpus scenes' packages are "
+                         "dev dependencies: pip install -e '.[dev]')")
+    return Path(list(spec.submodule_search_locations)[0])
 
 
 _loaded: dict[str, MeshParts] = {}  # by cache key: the scene check and the build share one
@@ -213,7 +228,10 @@ def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile,
     """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
     A file whose header declares more than ``triangle_budget`` is refused before loading."""
     loc = ("scenes", scene_name, "objects", index, "path")
-    mesh_path = resolve_mesh_path(path, obj)
+    try:
+        mesh_path = resolve_mesh_path(path, obj)
+    except ValueError as e:
+        raise key_error(path, node, loc[:-1] + ("package",), str(e)) from None
     try:
         check_regular_file(mesh_path)
     except FileNotFoundError:

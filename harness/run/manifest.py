@@ -85,7 +85,7 @@ def _meshes(scene) -> list[dict]:
     for obj in scene.config.objects:
         if isinstance(obj, cfg.MeshFile):
             parts = cfg.mesh_parts(cfg.resolve_mesh_path(scene.source or Path("."), obj), obj.up)
-            out.append({"path": obj.path, "triangles": parts.triangles, "parts": len(parts.names),
+            out.append({"path": obj.label, "triangles": parts.triangles, "parts": len(parts.names),
                         "open_parts": parts.closed.count(False),
                         "degenerate_dropped": parts.dropped, "skipped": dict(parts.skipped)})
     return out

@@ -64,13 +64,14 @@ def with_mesh(tmp_path, name: str, content: bytes | str):
 
 
 def canonical(triangles: np.ndarray) -> np.ndarray:
-    """Triangles (T, 3, 3) as a sorted list, each turned to start at its smallest vertex (the
-    same triangle, the same winding, whichever corner a fan starts at)."""
-    triangles = np.asarray(triangles, np.float64).round(6)
-    keys = [tuple(map(tuple, t)) for t in triangles]
-    first = [min(range(3), key=lambda i, k=k: k[i]) for k in keys]
-    return np.array(sorted(tuple(np.roll(t, -f, axis=0).ravel()) for t, f in
-                           zip(triangles, first)))
+    """Triangles (T, 3, 3) in a canonical order, each turned to start at its smallest vertex
+    (the same triangle, the same winding, whichever corner a fan starts at): (T, 9)."""
+    triangles = np.asarray(triangles, np.float64).round(6) + 0.0
+    _, ids = np.unique(triangles.reshape(-1, 3), axis=0, return_inverse=True)
+    first = np.argmin(ids.reshape(-1, 3), axis=1)
+    turned = triangles[np.arange(len(triangles))[:, None], (first[:, None] + np.arange(3)) % 3]
+    rows = turned.reshape(-1, 9)
+    return rows[np.lexsort(rows.T[::-1])]
 
 
 def ours(path) -> np.ndarray:
