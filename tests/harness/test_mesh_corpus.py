@@ -47,3 +47,36 @@ def test_the_loader_reads_trimeshs_triangles_less_the_zero_area_ones(obj):
     ours = np.concatenate([v[f] for v, f in zip(parts.vertices, parts.faces)])
     assert len(theirs) - len(ours) == parts.dropped == int((area == 0).sum())
     np.testing.assert_array_equal(canonical(ours), canonical(theirs[area > 0]))
+
+
+@pytest.mark.parametrize("mesh, key, needle", [
+    ({"package": "no_such_package_x", "path": "m.obj"}, "scenes.s.objects.1.package",
+     "no installed package 'no_such_package_x'"),
+    ({"package": "pymeshlab", "path": "../pymeshlab/tests/sample_meshes/cube.obj"},
+     "scenes.s.objects.1", "must be relative to the package's folder, without '..'"),
+    ({"package": "pymeshlab.tests", "path": "sample_meshes/cube.obj"},
+     "scenes.s.objects.1.package", "should match pattern"),
+    ({"package": "pymeshlab", "path": "tests/sample_meshes/nothing.obj"},
+     "scenes.s.objects.1.path", "no such file"),
+])
+def test_a_package_mesh_that_cannot_be_found_is_one_line(mesh, key, needle, tmp_path, capsys):
+    """Broken versions caught: ``package:`` ignored (the path read beside the scene file), a
+    path leaving the package's folder, a dotted name (finding it imports its parent)."""
+    from test_hardening import assert_one_line, run_cli, scene_with, sweep, write_scenes
+
+    scene_file = write_scenes(tmp_path, {"s": scene_with(objects__1={"shape": "mesh", **mesh})})
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    code, err = run_cli(sweep(scene_file, tmp_path / "out"), capsys)
+    assert_one_line(code, err, 2, key, needle)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_package_mesh_is_read_from_the_package_folder(tmp_path):
+    """The same file by ``package:`` and by its absolute path: one set of parts."""
+    obj = config.MeshFile(shape="mesh", package="pymeshlab", path="tests/sample_meshes/cube.obj")
+    path = config.resolve_mesh_path(tmp_path / "scenes.yaml", obj)
+    from importlib.metadata import files
+
+    installed, = [f for f in files("pymeshlab") if str(f).endswith("sample_meshes/cube.obj")]
+    assert path.resolve() == Path(installed.locate()).resolve()
+    assert config.mesh_parts(path).triangles == 12
