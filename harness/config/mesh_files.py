@@ -11,7 +11,7 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -20,8 +20,15 @@ from .mesh_formats import (check_numbers, check_vertices, declared_triangles, me
 from .mesh_obj import SHORT_FACES
 from .yaml_source import check_regular_file, key_error
 
-if TYPE_CHECKING:
-    from .scene_schema import MeshFile
+
+
+class MeshSource(Protocol):
+    """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
+    this module stays below the schema, with no import of it)."""
+
+    path: str  # relative to the scene file (or to the package's folder), or absolute
+    up: str  # the file's up axis
+    package: str | None  # an installed top-level package the path is inside
 
 MESH_CACHE_VERSION = 2  # bump when what is cached (or how it is built) changes
 # y-up assets (most of them) turned so that their +y is the scene's +z
@@ -72,7 +79,7 @@ def skipped_note(skipped: dict[str, int]) -> str:
     return "skipped " + ", ".join(kinds) if kinds else ""
 
 
-def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
+def resolve_mesh_path(scene_path: Path, obj: MeshSource) -> Path:
     """The file: relative to the scene file's folder, or to the folder of the installed package
     ``obj.package`` (found by importlib without importing it); a ValueError when no such
     package is installed."""
@@ -223,7 +230,7 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
         pass
 
 
-def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile,
+def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
                 triangle_budget: int | None = None) -> int:
     """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
     A file whose header declares more than ``triangle_budget`` is refused before loading."""
