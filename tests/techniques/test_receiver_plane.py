@@ -65,7 +65,8 @@ def test_receiver_plane_clears_a_grazing_plane_at_k_64(tilted_plane, evaluate):
     compare deeper than the plane and 94 % are in acne again, where the bound (receiver_plane
     off) at 1.1 leaves none: the comparison depth is the plane's, not a margin. Broken versions
     caught: the knob not reaching the shader (the bound: no acne at 1.1), the sign of g . (c - u)
-    flipped (acne at 1.0), the window corners' maximum taken as a minimum."""
+    flipped (acne at 1.0). (mdsm's window corners' maximum taken as a minimum is not caught
+    here: on a plane its selected depths pass either way.)"""
     def acne(**params):
         return evaluate(tilted_plane, "pcf", {"k": 64, **params}).row["acne_pct"]
 
