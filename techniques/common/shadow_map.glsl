@@ -176,7 +176,10 @@ Receiver receiver(vec3 world, vec3 normal) {
 // term is slope_bias x -g . (c - u), at its largest over the window (g . d is linear, so its
 // extreme over a box is at a corner, per axis): negative where the plane falls away from the
 // light, which the bound |g| |c - u| over-biases (light leaking under casters near their
-// receivers), exact on a plane, and with no margin at a concave contact (header).
+// receivers), exact on a plane, and with no margin at a concave contact (header). Its default
+// is false: on 38 default runs (pcf, mdsm, csm, lispsm on six shipped scenes and the four real
+// ones) it put acne above 0.1 % on 10 runs against 2 (castle's pcf 0.02 -> 0.31 %, jeep's mdsm
+// 0.05 -> 0.61 %), for leaks above 0.1 % on 6 runs against 8 (README).
 uniform bool receiver_plane;
 
 float receiver_bias(Receiver r, vec2 centre, vec2 reach_low, vec2 reach_high) {
