@@ -13,7 +13,7 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Fi
 
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
 from .mesh_files import check_mesh
-from .yaml_source import ConfigError, check_name, format_validation_error, key_error, read_yaml
+from .yaml_source import check_name, key_error, read_yaml, validation_error
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Size = Annotated[float, Field(gt=0, le=MAX_COORDINATE)]
@@ -126,6 +126,12 @@ class Array(Strict):
 
 
 class Placed(Strict):
+    """Where an object goes. Its vertices, in its own frame (a shape centred at its origin; a
+    mesh file's own coordinates, never recentred, turned first so that the file's ``up`` is
+    +z), are scaled (``scale``), then rotated about x, then y, then z (``rotate``, degrees),
+    then moved (``translate``); ``array`` copies the result. ``shadowbench list --scene NAME``
+    prints each object's bounds as placed."""
+
     name: str | None = Field(None, min_length=1)  # what an object motion may call it
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
@@ -442,7 +448,7 @@ def load_scenes(path: str | Path, *,
     try:
         scene_file = SceneFile.model_validate(data)
     except ValidationError as e:
-        raise ConfigError(format_validation_error(path, e, node)) from None
+        raise validation_error(path, e, node, model=SceneFile) from None
     for name, scene in scene_file.scenes.items():
         total = scene.family.triangles if scene.family else 0
         _within_budget(path, node, ("scenes", name, "family", "triangles"), total,

@@ -23,7 +23,7 @@ def one_line(e: BaseException) -> str:
 def _run_columns(spec: RunSpec) -> dict:
     return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
             "technique": spec.technique, "params": spec.params_json, "width": spec.width,
-            "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
+            "height": spec.height, "map_res": spec.params.get("res"), "frames": spec.frames,
             "code_version": spec.code_version, "ref_samples": spec.samples,
             "cost": spec.cost}
 
