@@ -132,6 +132,9 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("error", str, "", "why the run failed or was skipped, one line", "when status is ok"),
     Column("warnings", str, "", "warnings raised while the run was scored, `; `-separated",
            "when there were none"),
+    Column("mesh_notes", str, "", "what the scene's mesh files hold that defines no triangle, "
+           "skipped and counted, one line per file (`m.obj: skipped 201 faces with fewer than "
+           "3 vertices`)", "when nothing was skipped"),
     Column("code_version", str, "", "hash of the technique's code (module, imported siblings, "
            "shaders): rows of an older version are stale (see below)"),
     Column("ref_samples", int, "count", "reference samples per pixel"),

@@ -100,7 +100,7 @@ def scenes_lines(path: Path | None) -> list[str]:
         for obj in scene.objects:
             if isinstance(obj, config.MeshFile):
                 parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
-                lines.append(f"      mesh {obj.path}: {parts.summary()}")
+                lines.append(f"      mesh {obj.label}: {parts.summary()}")
     return lines
 
 
@@ -130,7 +130,7 @@ def inspect_lines(path: Path, name: str) -> list[str]:
         own = [p for p in parts if p.object_index == index]
         vertices = np.concatenate([p.vertices for p in own])
         triangles = sum(len(p.faces) for p in own)
-        label = obj.path if isinstance(obj, config.MeshFile) else obj.shape
+        label = obj.label if isinstance(obj, config.MeshFile) else obj.shape
         up = f"file up {obj.up}" if isinstance(obj, config.MeshFile) else "z up"
         copies = f", {int(np.prod(obj.array.count))} copies" if obj.array else ""
         lines.append(f"  {index}: {label}{f' ({obj.name})' if obj.name else ''}: bounds "

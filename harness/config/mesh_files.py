@@ -1,8 +1,9 @@
 """Config's mesh files, above yaml_source and mesh_formats: where a scene's ``shape: mesh`` file
 lies, its parts (loaded once, and cached on disk by the file's content as references are, so a
-10^6-triangle file is read in seconds once and in a fraction of one after), and the check that
-scene_schema's load_scenes runs: the file is a regular file, its header fits the budget before
-it is loaded, and every number and index in it is usable."""
+10^6-triangle file is read in seconds once and in a fraction of one after), what was skipped
+in it (counted, for the manifest and each run's ``mesh_notes``), and the check that
+scene_schema's load_scenes runs: the file is a regular file, its header or cheap count fits the
+budget before it is read whole, and every number and index a triangle uses is usable."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from .cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from .limits import MAX_COORDINATE
 from .mesh_formats import (_gltf_json, check_numbers, check_vertices, declared_triangles,
                            mesh_format, read_parts)
+from .mesh_obj import SHORT_FACES
 from .yaml_source import check_regular_file, key_error
 
 
@@ -28,10 +30,11 @@ class MeshSource(Protocol):
     """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
     this module stays below the schema, with no import of it)."""
 
-    path: str  # relative to the scene file, or absolute
+    path: str  # relative to the scene file (or to the package's folder), or absolute
     up: str  # the file's up axis
+    package: str | None  # an installed top-level package the path is inside
 
-MESH_CACHE_VERSION = 2  # bump when what is cached (or how it is built) changes; 2: checksums
+MESH_CACHE_VERSION = 3  # bump when what is cached (or how it is built) changes; 3: checksums
 # y-up assets (most of them) turned so that their +y is the scene's +z
 UP_ROTATION = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 
@@ -45,13 +48,15 @@ def cache_root() -> Path:
 class MeshParts:
     """A mesh file's parts as the scene uses them: z up, exact duplicate vertices merged,
     zero-area triangles dropped (``dropped`` counts them), each part closed or not (every
-    edge shared by exactly two faces, in opposite directions)."""
+    edge shared by exactly two faces, in opposite directions); ``skipped``: what the file holds
+    that defines no triangle, by kind (mesh_obj.SHORT_FACES, an OBJ keyword, ...), counted."""
 
     names: tuple[str, ...]
     vertices: tuple[np.ndarray, ...]  # (V, 3) float64 each
     faces: tuple[np.ndarray, ...]  # (F, 3) int32 each
     closed: tuple[bool, ...]
     dropped: int
+    skipped: tuple[tuple[str, int], ...] = ()
 
     @property
     def triangles(self) -> int:
@@ -62,10 +67,40 @@ class MeshParts:
         return (f"{self.triangles:,} triangles in {len(self.names)} parts ({open_parts} open)"
                 + (f", {self.dropped:,} degenerate dropped" if self.dropped else ""))
 
+    def notes(self) -> str:
+        """One line saying what was skipped ('' when nothing was): ``skipped 201 faces with
+        fewer than 3 vertices, 3 l, 12 vt statements``."""
+        return skipped_note(dict(self.skipped))
+
+
+def skipped_note(skipped: dict[str, int]) -> str:
+    kinds = [f"{n:,} {what}" for what, n in skipped.items() if what == SHORT_FACES]
+    kinds += [f"{n:,} {what}" for what, n in skipped.items() if " " in what and
+              what != SHORT_FACES]
+    statements = [f"{n:,} {what}" for what, n in skipped.items() if " " not in what]
+    if statements:
+        kinds.append(", ".join(statements) + " statements")
+    return "skipped " + ", ".join(kinds) if kinds else ""
+
 
 def resolve_mesh_path(scene_path: Path, obj: MeshSource) -> Path:
+    """The file: relative to the scene file's folder, or to the folder of the installed package
+    ``obj.package`` (found by importlib without importing it); a ValueError when no such
+    package is installed."""
     p = Path(obj.path)
+    if obj.package is not None:
+        return package_folder(obj.package) / p
     return p if p.is_absolute() else Path(scene_path).parent / p
+
+
+def package_folder(package: str) -> Path:
+    import importlib.util
+
+    spec = importlib.util.find_spec(package)  # a top-level name: nothing is imported
+    if spec is None or not spec.submodule_search_locations:
+        raise ValueError(f"no installed package {package!r} (the corpus scenes' packages are "
+                         "dev dependencies: pip install -e '.[dev]')")
+    return Path(list(spec.submodule_search_locations)[0])
 
 
 _loaded: dict[str, MeshParts] = {}  # by cache key: the scene check and the build share one
@@ -95,12 +130,12 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     from ..interrupt import raise_if_interrupted
 
     fmt = mesh_format(mesh_path)
-    declared_triangles(data, fmt)  # a lying header is named before trimesh misreads it
+    declared_triangles(mesh_path, fmt)  # a lying header is named before trimesh misreads it
     check_numbers(data, fmt)
-    if fmt in ("gltf", "glb"):
-        _check_data_uris(_gltf_json(data, fmt))
+    if fmt == "gltf":  # a GLB's buffer is its binary chunk
+        _check_data_uris(_gltf_json(data))
     try:
-        found = read_parts(mesh_path, fmt)
+        found, skipped = read_parts(mesh_path, fmt)
     except ValueError:
         raise  # ours, naming the line or element
     except ModuleNotFoundError:
@@ -115,7 +150,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     finally:
         raise_if_interrupted()  # trimesh catches BaseException in places, Ctrl-C included
     if not found:
-        raise ValueError("no triangles")
+        note = skipped_note(skipped)
+        raise ValueError("no triangle left" + (f" ({note})" if note else ""))
     names, vertices, faces, closed, dropped, total = [], [], [], [], 0, 0
     for name, v, f in found:
         where = f"part {name!r}: " if len(found) > 1 else ""
@@ -138,7 +174,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
             closed.append(_closed(f))
     if not faces:
         raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
-    return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped)
+    return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped,
+                     tuple(skipped.items()))
 
 
 def _check_data_uris(gltf: dict) -> None:
@@ -194,7 +231,8 @@ def _closed(faces: np.ndarray) -> bool:
 
 
 MESH_ENTRY = {"names": ("U", 1), "closed": ("b", 1), "dropped": ("i", 0), "vertices": ("f", 2),
-              "faces": ("i", 2), "vertex_ends": ("i", 1), "face_ends": ("i", 1)}
+              "faces": ("i", 2), "vertex_ends": ("i", 1), "face_ends": ("i", 1),
+              "skipped_kinds": ("U", 1), "skipped_counts": ("i", 1)}
 
 
 def _read_cache(path: Path) -> MeshParts | None:
@@ -209,7 +247,8 @@ def _read_cache(path: Path) -> MeshParts | None:
     parts = len(z["names"])
     if (vertices.shape[1:] != (3,) or faces.shape[1:] != (3,) or faces.dtype != np.int32
             or vertices.dtype != np.float64 or len(z["closed"]) != parts
-            or len(vertex_ends) != parts or len(face_ends) != parts or parts == 0):
+            or len(vertex_ends) != parts or len(face_ends) != parts or parts == 0
+            or len(z["skipped_kinds"]) != len(z["skipped_counts"])):
         raise DamagedEntry("arrays of other shapes than a mesh's parts")
     if (np.diff(vertex_ends, prepend=0) <= 0).any() or (np.diff(face_ends, prepend=0) <= 0).any() \
             or vertex_ends[-1] != len(vertices) or face_ends[-1] != len(faces) or z["dropped"] < 0:
@@ -221,8 +260,10 @@ def _read_cache(path: Path) -> MeshParts | None:
     for v, f in zip(split_vertices, split_faces):
         if f.min() < 0 or f.max() >= len(v):
             raise DamagedEntry("faces index past their part's vertices")
+    skipped = tuple((str(k), int(n)) for k, n in zip(z["skipped_kinds"], z["skipped_counts"]))
     return MeshParts(tuple(str(n) for n in z["names"]), tuple(split_vertices),
-                     tuple(split_faces), tuple(bool(c) for c in z["closed"]), int(z["dropped"]))
+                     tuple(split_faces), tuple(bool(c) for c in z["closed"]), int(z["dropped"]),
+                     skipped)
 
 
 def _write_cache(path: Path, parts: MeshParts) -> None:
@@ -235,7 +276,10 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
                            "vertices": np.concatenate(parts.vertices),
                            "faces": np.concatenate(parts.faces),
                            "vertex_ends": np.cumsum([len(v) for v in parts.vertices]),
-                           "face_ends": np.cumsum([len(f) for f in parts.faces])})
+                           "face_ends": np.cumsum([len(f) for f in parts.faces]),
+                           "skipped_kinds": np.array([k for k, _ in parts.skipped], dtype=str),
+                           "skipped_counts": np.array([n for _, n in parts.skipped],
+                                                      dtype=np.int64)})
     except OSError:
         pass
 
@@ -245,7 +289,10 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
     """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
     A file whose header declares more than ``triangle_budget`` is refused before loading."""
     loc = ("scenes", scene_name, "objects", index, "path")
-    mesh_path = resolve_mesh_path(path, obj)
+    try:
+        mesh_path = resolve_mesh_path(path, obj)
+    except ValueError as e:
+        raise key_error(path, node, loc[:-1] + ("package",), str(e)) from None
     try:
         check_regular_file(mesh_path)
     except FileNotFoundError:
@@ -254,14 +301,15 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
         raise key_error(path, node, loc, f"{mesh_path}: {getattr(e, 'strerror', None) or e}") \
             from None
     try:
-        data = mesh_path.read_bytes()
-        declared = declared_triangles(data, mesh_format(mesh_path))
+        fmt = mesh_format(mesh_path)
+        declared = declared_triangles(mesh_path, fmt, stop_after=triangle_budget)
         if triangle_budget is not None and declared > triangle_budget:
+            least = " at least" if fmt in ("obj", "ply", "off") else ""  # polygons fanned
             raise key_error(path, node, loc,
-                            f"{mesh_path} declares {declared:,} triangles, more than the budget "
-                            f"of {triangle_budget:,} (an experiment may raise it with "
+                            f"{mesh_path} declares{least} {declared:,} triangles, more than the "
+                            f"budget of {triangle_budget:,} (an experiment may raise it with "
                             "triangle_budget:)")
-        return mesh_parts(mesh_path, obj.up, data).triangles
+        return mesh_parts(mesh_path, obj.up).triangles
     except (ValueError, OSError) as e:
         raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: "
                                          f"{getattr(e, 'strerror', None) or e}") from None

@@ -211,9 +211,29 @@ class Lathe(Placed):
 
 
 class MeshFile(Placed):
+    """A mesh file: ``path`` relative to the scene file, or with ``package:`` (an installed
+    top-level Python package's import name) relative to that package's folder, so a scene may
+    use a file a package ships (``{shape: mesh, package: pymeshlab, path:
+    tests/sample_meshes/airplane.obj}``); the package is found, never imported."""
+
     shape: Literal["mesh"]
-    path: str  # .obj, .ply, .stl, .glb or .gltf, relative to the scene file
+    path: str  # .obj, .ply, .stl, .off, .glb or .gltf
     up: Literal["y", "z"] = "z"  # the file's up axis; a y-up file is turned so +y is +z
+    package: Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")] | None = None
+
+    @model_validator(mode="after")
+    def _inside_the_package(self):
+        if self.package is not None:
+            p = Path(self.path)
+            if p.is_absolute() or ".." in p.parts:
+                raise ValueError(f"path {self.path!r}: with package: it must be relative to the "
+                                 "package's folder, without '..'")
+        return self
+
+    @property
+    def label(self) -> str:
+        """How the file is named in the manifest and the rows: ``package:path`` or the path."""
+        return f"{self.package}:{self.path}" if self.package else self.path
 
 
 def _triangle_count(value):
