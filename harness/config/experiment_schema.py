@@ -181,8 +181,8 @@ def with_timing(exp: Experiment, **options) -> Experiment:
         first = e.errors()[0]
         option = str(first["loc"][0])
         msg = first["msg"].removeprefix("Value error, ")
-        raise ConfigError(f"--{option.replace('_', '-')}: {msg}, got "
-                          f"{given.get(option)!r}") from None
+        got = "" if ", got " in msg else f", got {given.get(option)!r}"  # said once
+        raise ConfigError(f"--{option.replace('_', '-')}: {msg}{got}") from None
 
 
 def load_experiment(path: str | Path) -> tuple[Experiment, object]:
