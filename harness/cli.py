@@ -67,7 +67,7 @@ def scene_file(text: str | None) -> Path | None:
     else ./scenes.yaml, else the scenes shipped beside the installed package (a source checkout
     or an editable install); None when there is none."""
     if text is not None:
-        if not Path(text).is_file():
+        if not Path(text).exists():  # a FIFO, socket or folder is said by the reader
             raise ConfigError(f"--scene-file {text}: no such file")
         return Path(text)
     for path in (Path(DEFAULT_SCENE_FILE), SHIPPED_SCENE_FILE):

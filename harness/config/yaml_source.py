@@ -114,8 +114,9 @@ def _fields_at(model, loc: tuple) -> list[str]:
                    for name in c.model_fields})
 
 
-def _error_line(path: Path, error: dict, root_node, prefix: tuple, allowed) -> tuple[int, str]:
-    """(sort key, "file:line: key.path: message") of one pydantic error. An unknown key comes
+def _error_line(path: Path, error: dict, root_node, prefix: tuple,
+                allowed) -> tuple[int, str, str]:
+    """(sort key, key path, "file:line: key.path: message") of one pydantic error. An unknown key comes
     first, at its own line, with the closest key the schema allows there."""
     import difflib
 
@@ -137,7 +138,7 @@ def _error_line(path: Path, error: dict, root_node, prefix: tuple, allowed) -> t
     keypath = ".".join(str(p) for p in loc)
     line = _line_of(root_node, loc)
     where = f"{path}:{line}" if line else str(path)
-    return rank, f"{where}: {keypath}: {msg}"
+    return rank, keypath, f"{where}: {keypath}: {msg}"
 
 
 def validation_error(path: Path, err: ValidationError, root_node, prefix=(),
@@ -149,7 +150,13 @@ def validation_error(path: Path, err: ValidationError, root_node, prefix=(),
         return _fields_at(model, loc) if model is not None else []
 
     errors = [_error_line(path, e, root_node, prefix, allowed) for e in err.errors()]
-    lines = list(dict.fromkeys(text for _, text in sorted(errors, key=lambda e: e[0])))
+    # one line a key: the branches of a union (a number or a list) each fail at the same key,
+    # or below it, and the first says what is wrong
+    keys, lines = [], []
+    for _, keypath, text in sorted(errors, key=lambda e: e[0]):
+        if not any(keypath == k or keypath.startswith(k + ".") for k in keys):
+            keys.append(keypath)
+            lines.append(text)
     more = len(lines) - MAX_LISTED_ERRORS
     listed = lines[:MAX_LISTED_ERRORS] + ([f"(and {more} more)"] if more > 0 else [])
     return ConfigError(listed[0], tuple(listed[1:]))
