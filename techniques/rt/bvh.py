@@ -35,6 +35,7 @@ class Bvh:
     first: np.ndarray  # (N,) int64: first child (internal) or first entry of ``order`` (leaf)
     count: np.ndarray  # (N,) int64: 0 for an internal node, primitives for a leaf
     order: np.ndarray  # (T,) int64: primitive indices in leaf order
+    depth: int = 0  # edges from the root to the deepest leaf
 
     @property
     def nodes(self) -> int:
@@ -50,6 +51,12 @@ class Bvh:
         out[:, 0, 3] = first.astype(np.uint32).view(np.float32)
         out[:, 1, 3] = self.count.astype(np.uint32).view(np.float32)
         return out.reshape(-1, 4)
+
+
+def lbvh_depth_bound(primitives: int) -> int:
+    """The deepest an ``lbvh`` tree gets: one level per bit of the 30-bit codes, then halving
+    runs of equal codes."""
+    return 30 + max(int(primitives) - 1, 0).bit_length()
 
 
 def max_nodes(primitives: int) -> int:
@@ -161,7 +168,7 @@ def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int =
     first = np.zeros(capacity, np.int64)
     count = np.zeros(capacity, np.int64)
     ids, start, end = np.array([0]), np.array([0]), np.array([n])
-    used = 1
+    used, depth = 1, 0
     while len(ids):
         size = end - start
         leaf = size <= leaf_size
@@ -183,7 +190,8 @@ def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int =
         children = used + 2 * np.arange(k)
         first[ids[inner]] = children
         used += 2 * k
+        depth += 1
         ids = np.stack([children, children + 1], 1).ravel()
         start = np.stack([s, split], 1).ravel()
         end = np.stack([split, e], 1).ravel()
-    return Bvh(node_lo[:used], node_hi[:used], first[:used], count[:used], order)
+    return Bvh(node_lo[:used], node_hi[:used], first[:used], count[:used], order, depth)
