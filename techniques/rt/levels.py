@@ -90,7 +90,8 @@ class TwoLevelBvh:
 
     def rebuild_top(self, poses: np.ndarray) -> None:
         """Build the top level over the instances at ``poses`` (all parts' (P, 4, 4)) and
-        upload it with each instance's world-to-object transform."""
+        upload it with each instance's world-to-object transform, in the top level's leaf
+        order."""
         if self.empty:
             return
         poses = np.asarray(poses, np.float64)[self.used]
@@ -100,7 +101,7 @@ class TwoLevelBvh:
         instances = np.zeros((len(self.used), 4, 4), np.float32)
         instances[:, :3] = np.linalg.inv(poses)[:, :3]
         instances[:, 3, 0] = self.root_nodes.view(np.float32)
-        self.instances.write(instances.reshape(-1, 4))
+        self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
 
     def bind(self, program, first_unit: int) -> int:
         """Bind the four buffer textures to ``program``'s samplers; returns the next unit."""
