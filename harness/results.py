@@ -25,7 +25,7 @@ COLUMNS: dict[str, type] = {
     "triangles": int, "parts": int, "open_parts": int, "shadow_edges": int,
     "time_ms": float, "time_ms_min": float, "time_ms_max": float, "frames": int,
     "time_ms_ci_low": float, "time_ms_ci_high": float, "frame_ms": str,
-    "cost": str, "setup_ms": float, "setup_ms_ci_low": float, "setup_ms_ci_high": float,
+    "cost": str, "prepare_ms": float, "setup_ms": float, "setup_ms_ci_low": float, "setup_ms_ci_high": float,
     "cpu_contention": float, "noisy": int,
     "scene_ms": float,
     "frags_scene": float, "frags_shadow": float, "overdraw": float, "mem_bytes": float,
