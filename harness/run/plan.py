@@ -217,8 +217,15 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                         line = cfg._line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
+                        where = where if experiment_path else "--set"
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
-                                                 where if experiment_path else "--set")
+                                                 where)
+                        cls = registered[tech]
+                        try:
+                            cls.check_scene(cls.Params(**params), scene_at)
+                        except ValueError as e:
+                            raise cfg.ConfigError(f"{where}: {tech}.{e} (scene "
+                                                  f"{scene_name})") from None
                         # a moving scene's run measures each frame of its sequence once
                         frames = scene_at.frames if scene_at.frames > 1 else scene_frames
                         spec = RunSpec(scene_name, tech, params, width, height, frames,

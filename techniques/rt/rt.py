@@ -75,14 +75,19 @@ class RayTraced(Technique):
         mask_res: Literal["full", "half", "quarter"] = "full"
         budget_mib: int = Field(256, ge=1, le=4096)
 
+    @classmethod
+    def check_scene(cls, params, scene) -> None:
+        triangles = sum(len(part.faces) for part in scene.parts)
+        bound = levels.bound_bytes(triangles)
+        if bound > params.budget_mib * 2**20:
+            raise ValueError(f"budget_mib: {triangles:,} triangles could take "
+                             f"{bound / 2**20:.0f} MiB of BVH, over the budget of "
+                             f"{params.budget_mib} MiB")
+
     def prepare(self, frame: Frame) -> None:
         p = self.params
+        self.check_scene(p, frame.scene)  # refused before anything is built
         parts = frame.scene.parts
-        triangles = sum(len(part.faces) for part in parts)
-        bound = levels.bound_bytes(triangles)
-        if bound > p.budget_mib * 2**20:
-            raise ValueError(f"rt: {triangles:,} triangles could take {bound / 2**20:.0f} MiB "
-                             f"of BVH, over budget_mib {p.budget_mib}")
         divisor = MASK_DIVISOR[p.mask_res]
         self.mask = Texture(-(-frame.width // divisor), -(-frame.height // divisor), GL.GL_R32F)
         self.divisor = divisor

@@ -35,13 +35,11 @@ bool watertight_hit(Watertight r, vec3 v0, vec3 v1, vec3 v2, float tmax) {
     float U = Cx * By - Cy * Bx;
     float V = Ax * Cy - Ay * Cx;
     float W = Bx * Ay - By * Ax;
-#ifndef NO_DOUBLE_FALLBACK
     if (U == 0.0 || V == 0.0 || W == 0.0) {
         U = float(double(Cx) * double(By) - double(Cy) * double(Bx));
         V = float(double(Ax) * double(Cy) - double(Ay) * double(Cx));
         W = float(double(Bx) * double(Ay) - double(By) * double(Ax));
     }
-#endif
     if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) {
         return false;
     }
