@@ -1,5 +1,6 @@
 """Work per ray, counted in an untimed repeat of the trace: nodes visited (both levels) and
-triangle tests, each ray's written by ``rt_trace.comp.glsl`` built with ``COUNT``."""
+triangle tests, each ray's written by ``rt_trace.comp.glsl`` built with ``COUNT``, over all
+rays and over the occluded ones (those that had to find a triangle: the traversal's depth)."""
 
 from __future__ import annotations
 
@@ -20,34 +21,37 @@ class RayCounter:
                                       {**defines, "COUNT": 1})
         self.texture = GL.glGenTextures(1)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.texture)
-        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, GL.GL_RG32UI, width, height)
+        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, GL.GL_RGBA32UI, width, height)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
 
     def count(self, trace) -> dict:
         """Run ``trace(program)`` with the counting program (it writes the same mask) and
         return the per-ray means and 99th percentiles over the rays traced."""
-        GL.glBindImageTexture(1, self.texture, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_RG32UI)
+        GL.glBindImageTexture(1, self.texture, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_RGBA32UI)
         trace(self.program)
         GL.glMemoryBarrier(GL.GL_TEXTURE_UPDATE_BARRIER_BIT)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.texture)
-        out = np.empty((self.height, self.width, 2), np.uint32)
+        out = np.empty((self.height, self.width, 4), np.uint32)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        GL.glGetTexImage(GL.GL_TEXTURE_2D, 0, GL.GL_RG_INTEGER, GL.GL_UNSIGNED_INT, out)
+        GL.glGetTexImage(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA_INTEGER, GL.GL_UNSIGNED_INT, out)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         rays = out[..., 0] > 0  # every traced ray visits the top level's root
-        nodes, tests = out[..., 0][rays], out[..., 1][rays]
-        return per_ray(nodes, tests)
+        nodes, tests, occluded = (out[..., i][rays] for i in range(3))
+        return per_ray(nodes, tests, occluded.astype(bool))
 
     def release(self) -> None:
         self.program.release()
         GL.glDeleteTextures(1, [self.texture])
 
 
-def per_ray(nodes: np.ndarray, tests: np.ndarray) -> dict:
-    """Mean and 99th percentile of nodes visited and triangle tests per ray, and the rays."""
+def per_ray(nodes: np.ndarray, tests: np.ndarray, occluded: np.ndarray) -> dict:
+    """Mean and 99th percentile of nodes visited and triangle tests per ray, the mean nodes of
+    an occluded ray, and the rays."""
     if not len(nodes):
         return {"rays": 0}
-    return {"rays": int(len(nodes)),
+    return {"rays": int(len(nodes)), "occluded_rays": int(occluded.sum()),
+            "nodes_per_occluded_ray": (round(float(nodes[occluded].mean()), 3)
+                                       if occluded.any() else None),
             "nodes_per_ray": round(float(nodes.mean()), 3),
             "nodes_per_ray_p99": float(np.percentile(nodes, 99)),
             "tests_per_ray": round(float(tests.mean()), 3),

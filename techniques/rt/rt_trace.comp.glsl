@@ -3,13 +3,13 @@
 // in world space, each leaf one instance whose bottom-level BVH is in the part's own space
 // (the ray moved there by the instance's world-to-object transform). One stack serves both
 // levels (Aila and Laine 2009's while-while loop, one level at a time). Early exit on the
-// first hit. Writes V (0/1) to `mask`; with COUNT defined, nodes visited and triangle tests of
-// each ray to `counts` instead of being fast.
+// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes visited, triangle tests
+// and whether it was occluded, per ray, to `counts`.
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(r32f, binding = 0) writeonly uniform image2D mask;
 #ifdef COUNT
-layout(rg32ui, binding = 1) writeonly uniform uimage2D counts;
+layout(rgba32ui, binding = 1) writeonly uniform uimage2D counts;
 #endif
 uniform sampler2D gbuffer_position;
 uniform sampler2D gbuffer_normal;
@@ -123,6 +123,6 @@ void main() {
     }
     imageStore(mask, texel, vec4(v));
 #ifdef COUNT
-    imageStore(counts, texel, uvec4(visited, tested, 0u, 0u));
+    imageStore(counts, texel, uvec4(visited, tested, v == 0.0 ? 1u : 0u, 0u));
 #endif
 }
