@@ -7,7 +7,6 @@ from __future__ import annotations
 from contextlib import contextmanager
 
 import numpy as np
-import pytest
 
 from harness import config, registry
 from harness.scene import build_scene
