@@ -31,7 +31,7 @@ COLUMNS: dict[str, type] = {
     "frags_scene": float, "frags_shadow": float, "overdraw": float, "mem_bytes": float,
     "fetches_per_px": float, "covered_px": float,
     "vertex_invocations": float, "fragment_invocations": float, "primitives": float,
-    "compute_invocations": float,
+    "compute_invocations": float, "traversal_nodes": float, "triangle_tests": float,
     "gpu_estimate_ms": float,
     "mae": float, "rmse": float, "wrong_pct": float, "edge_mae": float, "ssim": float,
     "psnr": float, "flip": float, "levels": float,

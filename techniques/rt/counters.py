@@ -46,10 +46,13 @@ class RayCounter:
 
 def per_ray(nodes: np.ndarray, tests: np.ndarray, occluded: np.ndarray) -> dict:
     """Mean and 99th percentile of nodes visited and triangle tests per ray, the mean nodes of
-    an occluded ray, and the rays."""
+    an occluded ray, the rays, and the frame's totals."""
     if not len(nodes):
         return {"rays": 0}
     return {"rays": int(len(nodes)), "occluded_rays": int(occluded.sum()),
+            # a frame's totals: the cost model's traversal work (harness.cost_model)
+            "traversal_nodes": int(nodes.sum(dtype=np.int64)),
+            "triangle_tests": int(tests.sum(dtype=np.int64)),
             "nodes_per_occluded_ray": (round(float(nodes[occluded].mean()), 3)
                                        if occluded.any() else None),
             "nodes_per_ray": round(float(nodes.mean()), 3),

@@ -127,6 +127,9 @@ class RayTraced(Technique):
             return
         GL.glDispatchCompute(-(-self.mask.width // GROUP), -(-self.mask.height // GROUP), 1)
         GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        # unbound at once, as harness.gl.reduction does: Mesa (llvmpipe) otherwise keeps the
+        # program bound after a dispatch alive past its deletion (a leak the contract test saw)
+        GL.glUseProgram(0)
 
     def _visibility_pass(self, frame: Frame) -> None:
         frame.begin_visibility()
@@ -153,7 +156,7 @@ class RayTraced(Technique):
                             fetches_per_px=1 if self.divisor == 1 else 4, extra=extra)
 
     def release(self) -> None:
-        for resource in (self.mask, self.visibility_program, self.trace_program, self.levels,
-                         self.embree, getattr(self, "counter", None)):
+        for resource in (self.trace_program, getattr(self, "counter", None), self.mask,
+                         self.visibility_program, self.levels, self.embree):
             if resource is not None:
                 resource.release()

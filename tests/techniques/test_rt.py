@@ -12,8 +12,8 @@ import pytest
 from harness import config, registry
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 HARD = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
 SIZE = 64
 # the most differing pixels a scene may have, as a share of its compared pixels: foliage at

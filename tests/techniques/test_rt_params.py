@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from conftest import SCENE_FILE
+from helpers import SCENE_FILE
 from harness import cli
 from techniques.rt import bvh
 

@@ -11,7 +11,7 @@ from harness import config, registry
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
 
-from conftest import SCENE_FILE
+from helpers import SCENE_FILE
 
 SIZES = (1_000, 4_000, 16_000, 64_000)
 
