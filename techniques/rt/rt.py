@@ -94,7 +94,7 @@ class RayTraced(Technique):
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "rt_visibility.frag.glsl")
         self.levels = self.embree = self.trace_program = None
-        self.counts = None
+        self.counted = (None, {})  # what the counters were last counted for, and their values
         if p.backend == "embree":
             self.embree = EmbreeRays(frame.scene)
             return
@@ -117,14 +117,14 @@ class RayTraced(Technique):
         return dict(directional=False, light=np.asarray(light.position, np.float64))
 
     def _trace(self, frame: Frame, program) -> None:
+        if self.levels.empty:
+            self.mask.clear(1.0)
+            return
         program.use()
         unit = frame.bind_gbuffer(program)
         self.levels.bind(program, unit)
         program.set(divisor=self.divisor, **self._light_uniforms(frame))
         GL.glBindImageTexture(0, self.mask.id, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_R32F)
-        if self.levels.empty:
-            self.mask.clear(1.0)
-            return
         GL.glDispatchCompute(-(-self.mask.width // GROUP), -(-self.mask.height // GROUP), 1)
         GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
         # unbound at once, as harness.gl.reduction does: Mesa (llvmpipe) otherwise keeps the
@@ -138,6 +138,17 @@ class RayTraced(Technique):
         program.set(ray_mask=self.mask.bind(unit), magnify=self.divisor > 1)
         frame.draw_fullscreen(covered_only=True)
 
+    def _count(self, frame: Frame) -> dict:
+        """The rays' work, counted untimed by the same rays again, whenever the light, the
+        camera or an object moved (once on a still scene): a diagnostic, as sv's fill."""
+        light = frame.scene.light
+        key = tuple(b"" if v is None else np.asarray(v).tobytes()
+                    for v in (light.direction, light.position, frame.camera.view_proj,
+                              frame.part_poses))
+        if key != self.counted[0] and not self.levels.empty:
+            self.counted = (key, self.counter.count(lambda program: self._trace(frame, program)))
+        return dict(self.counted[1])
+
     def render(self, frame: Frame) -> ShadowOutput:
         extra = {}
         if self.embree is not None:
@@ -147,8 +158,7 @@ class RayTraced(Technique):
             with frame.measure("trace"):
                 self._trace(frame, self.trace_program)
             bvh_bytes = self.levels.nbytes
-            if not self.levels.empty:  # untimed: the same rays again, counting their work
-                extra = self.counter.count(lambda program: self._trace(frame, program))
+            extra = self._count(frame)
         with frame.measure("visibility"):
             self._visibility_pass(frame)
         extra["bvh_bytes"] = bvh_bytes
