@@ -103,13 +103,11 @@ def test_rt_equals_sv_but_for_ties_on_shadow_edges(path, name, frames):
     assert extra["rays"] == frame.arrays.covered.sum()  # one ray per covered pixel
 
 
-SHIPPED = [item for item in ALL if item[0].name == "scenes.yaml"]
-
-
-@pytest.mark.parametrize("path,name", SHIPPED, ids=[n for _, n in SHIPPED])
+@pytest.mark.parametrize("path,name", ALL, ids=[n for _, n in ALL])
 def test_compute_traversal_equals_embree_but_for_ties(path, name, frames):
     """The compute traversal's V equals the embree backend's (Mitsuba's ray_test on the same
-    rays, origins offset by the same bits) on every shipped scene, but for at most 0.5% of the
+    rays, origins offset by the same bits) on every shipped scene and hard case (measured: no
+    pixel differs in any at 64 x 64), but for at most 0.5% of the
     compared pixels, each on a shadow boundary: Mitsuba traces the scene moved next to its
     origin (``reference.mitsuba_origin``), which rounds a grazing ray otherwise. The SAH
     builder's V equals LBVH's bit for bit (the same triangles, any-hit: the tree changes the
