@@ -23,17 +23,21 @@ def offset_ray(p: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.where(np.abs(p) < ORIGIN, p + np.float32(FLOAT_SCALE) * n, moved)
 
 
-def shadow_rays(position, normal, directional: bool, light):
-    """Origins, directions and lengths of the shadow rays from points with normals (float32
-    (N, 3)): the origin offset to the light's side; directions toward the light, unit."""
+def shadow_rays(position, normal, directional: bool, light, camera_position):
+    """Which points (float32 (N, 3), with normals) the light reaches (their visible side, the
+    normal turned to the camera, faces it: ``rt_trace.comp.glsl``'s test), and the shadow rays
+    from those: origins offset along that normal, unit directions toward the light, lengths."""
     light = np.asarray(light, np.float64)
+    to_camera = np.asarray(camera_position, np.float64) - position
+    normal = np.where((np.sum(normal * to_camera, axis=1) >= 0)[:, None], normal, -normal)
     to_light = np.broadcast_to(light, position.shape) if directional else light - position
-    side = np.where((np.sum(normal * to_light, axis=1) >= 0)[:, None], normal, -normal)
-    origin = offset_ray(position, side)
+    facing = np.sum(normal * to_light, axis=1) > 0
+    position, normal = position[facing], normal[facing]
+    origin = offset_ray(position, normal)
     direction = np.broadcast_to(light, origin.shape) if directional else light - origin
     length = np.linalg.norm(direction, axis=1)
     maxt = np.full(len(origin), np.inf) if directional else length
-    return origin, direction / np.maximum(length, 1e-30)[:, None], maxt
+    return facing, origin, direction / np.maximum(length, 1e-30)[:, None], maxt
 
 
 class EmbreeRays:
@@ -53,8 +57,9 @@ class EmbreeRays:
             with frame.measure("scene_build"):
                 self._build(frame.scene)
 
-    def trace(self, frame, mask, divisor: int, light: dict) -> None:
-        """The mask (GL rows, bottom first) from one ray per mask texel."""
+    def trace(self, frame, mask, divisor: int, light: dict, camera_position) -> None:
+        """The mask (GL rows, bottom first) from one ray per mask texel (V = 0 and no ray
+        where the visible side faces away from the light)."""
         mi = self.mi
         with frame.measure("readback"):
             g = frame.gbuffer.read()
@@ -64,15 +69,19 @@ class EmbreeRays:
             cols = np.minimum(np.arange(mask.width) * divisor + divisor // 2, w - 1)
             pick = np.ix_(h - 1 - rows, cols)  # GL row y is the image's row h - 1 - y
             covered = g.covered[pick]
-            origin, direction, maxt = shadow_rays(g.position[pick][covered],
-                                                  g.normal[pick][covered],
-                                                  light["directional"], light["light"])
-            o = (origin.astype(np.float64) - self.shift).astype(np.float32)
-            ray = mi.Ray3f(mi.Point3f(*o.T), mi.Vector3f(*direction.astype(np.float32).T))
-            ray.maxt = mi.Float(maxt.astype(np.float32))
-            hit = np.asarray(self.scene.ray_test(ray), bool)
+            facing, origin, direction, maxt = shadow_rays(
+                g.position[pick][covered], g.normal[pick][covered], light["directional"],
+                light["light"], camera_position)
+            hit = np.zeros(len(origin), bool)
+            if len(origin):  # Dr.Jit aborts the process on a trace of no rays
+                o = (origin.astype(np.float64) - self.shift).astype(np.float32)
+                ray = mi.Ray3f(mi.Point3f(*o.T), mi.Vector3f(*direction.astype(np.float32).T))
+                ray.maxt = mi.Float(maxt.astype(np.float32))
+                hit = np.asarray(self.scene.ray_test(ray), bool)
+            lit = np.zeros(int(covered.sum()), np.float32)
+            lit[facing] = np.where(hit, 0.0, 1.0)
             v = np.ones(covered.shape, np.float32)
-            v[covered] = np.where(hit, 0.0, 1.0)
+            v[covered] = lit
         with frame.measure("upload"):
             GL.glBindTexture(GL.GL_TEXTURE_2D, mask.id)
             GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)

@@ -35,8 +35,9 @@ class RayTraced(Technique):
     ``backend: embree`` traces the same rays on the CPU with Mitsuba's ``ray_test``
     (``embree``), its G-buffer read-back, trace and V upload in timed passes.
 
-    The origin of each ray is the G-buffer point moved off its surface along the normal turned
-    to the light, by 256 units in the last place of each coordinate (Waechter and Binder 2019;
+    A pixel whose visible side faces away from the light gets V = 0 and no ray (it receives
+    no light; such pixels are never compared). The origin of each ray is the G-buffer point
+    moved off its surface along that normal, by 256 units in the last place of each coordinate (Waechter and Binder 2019;
     ``rt_offset.glsl`` says why): the offset follows the position's own rounding, whatever the
     scene's scale. ``mask_res: half`` or ``quarter`` traces one ray per 2x2 or 4x4 pixels and
     magnifies the 0/1 mask bilinearly, as sv's smaller masks. One-off work (the bottom levels,
@@ -123,7 +124,8 @@ class RayTraced(Technique):
         program.use()
         unit = frame.bind_gbuffer(program)
         self.levels.bind(program, unit)
-        program.set(divisor=self.divisor, **self._light_uniforms(frame))
+        program.set(divisor=self.divisor, camera_position=frame.camera.position,
+                    **self._light_uniforms(frame))
         GL.glBindImageTexture(0, self.mask.id, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_R32F)
         GL.glDispatchCompute(-(-self.mask.width // GROUP), -(-self.mask.height // GROUP), 1)
         GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
@@ -152,7 +154,8 @@ class RayTraced(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         extra = {}
         if self.embree is not None:
-            self.embree.trace(frame, self.mask, self.divisor, self._light_uniforms(frame))
+            self.embree.trace(frame, self.mask, self.divisor, self._light_uniforms(frame),
+                              frame.camera.position)
             bvh_bytes = 0
         else:
             with frame.measure("trace"):

@@ -20,6 +20,7 @@ uniform samplerBuffer instances;  // 4 texels: rows of world-to-object 3x4, (roo
 uniform int divisor;              // image pixels per mask texel along each axis
 uniform bool directional;
 uniform vec3 light;               // directional: unit vector towards the light; else position
+uniform vec3 camera_position;
 
 #include "rt_offset.glsl"
 #include "rt_watertight.glsl"
@@ -114,12 +115,19 @@ void main() {
     float v = 1.0;
     uint visited = 0u, tested = 0u;
     if (p.w > 0.5) {
+        // the visible side (the normal turned to the camera) facing away from the light
+        // receives no light: V = 0 and no ray, as engines skip it (harness.metrics'
+        // receives_light: such pixels are never compared)
         vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
+        n = dot(n, camera_position - p.xyz) >= 0.0 ? n : -n;
         vec3 to_light = directional ? light : light - p.xyz;
-        vec3 origin = offset_ray(p.xyz, dot(n, to_light) >= 0.0 ? n : -n);
-        vec3 dir = directional ? light : light - origin;
-        float tmax = directional ? 3.0e38 : 1.0;
-        v = occluded(origin, dir, tmax, visited, tested) ? 0.0 : 1.0;
+        v = 0.0;
+        if (dot(n, to_light) > 0.0) {
+            vec3 origin = offset_ray(p.xyz, n);
+            vec3 dir = directional ? light : light - origin;
+            float tmax = directional ? 3.0e38 : 1.0;
+            v = occluded(origin, dir, tmax, visited, tested) ? 0.0 : 1.0;
+        }
     }
     imageStore(mask, texel, vec4(v));
 #ifdef COUNT

@@ -100,7 +100,8 @@ def test_rt_equals_sv_but_for_ties_on_shadow_edges(path, name, frames):
         return
     assert differ.sum() <= TIES * compared.sum() + 1, (int(differ.sum()), int(compared.sum()))
     assert np.array_equal(on_a_boundary(sv, differ), differ), "a difference off any edge"
-    assert extra["rays"] == frame.arrays.covered.sum()  # one ray per covered pixel
+    # one ray per covered pixel the light reaches (none where the visible side faces away)
+    assert compared.sum() <= extra.get("rays", 0) <= frame.arrays.covered.sum()
 
 
 @pytest.mark.parametrize("path,name", ALL, ids=[n for _, n in ALL])
