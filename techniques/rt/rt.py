@@ -39,11 +39,11 @@ class RayTraced(Technique):
     no light; such pixels are never compared). The origin of each ray is the G-buffer point
     moved off its surface along that normal, by 256 units in the last place of each
     coordinate (Waechter and Binder 2019; ``rt_offset.glsl`` says why): the offset follows the
-    position's own rounding, whatever the scene's scale. ``mask_res: half`` or ``quarter`` traces one ray per 2x2 or 4x4 pixels and
-    magnifies the 0/1 mask bilinearly, as sv's smaller masks. One-off work (the bottom levels,
-    Mitsuba's scene) is the harness's ``prepare_ms``. Nodes visited and triangle tests per ray
-    are counted in an untimed repeat of the trace (``counters``); ``mem_bytes`` is the BVH's
-    bytes and the mask's.
+    position's own rounding, whatever the scene's scale. ``mask_res: half`` or ``quarter``
+    traces one ray per 2x2 or 4x4 pixels and magnifies the 0/1 mask bilinearly, as sv's
+    smaller masks. One-off work (the bottom levels, Mitsuba's scene) is the harness's
+    ``prepare_ms``. Nodes visited and triangle tests per ray are counted in an untimed repeat
+    of the trace (``counters``); ``mem_bytes`` is the BVH's bytes and the mask's.
 
     ==================  ==================================================  =======  ==========
     Parameter           Meaning                                             Default  Range
