@@ -5,7 +5,7 @@
 // levels (Aila and Laine 2009's while-while loop, one level at a time). Early exit on the
 // first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes visited, triangle tests
 // and whether it was occluded, per ray, to `counts`.
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(r32f, binding = 0) writeonly uniform image2D mask;
 #ifdef COUNT
