@@ -123,3 +123,28 @@ def test_compute_traversal_equals_embree_but_for_ties(path, name, frames):
     assert differ.sum() <= TIES * compared.sum() + 1, int(differ.sum())
     assert np.array_equal(on_a_boundary(gl, differ), differ)
     np.testing.assert_array_equal(sah, gl)
+
+
+@pytest.mark.parametrize("mask_res, divisor", [("half", 2), ("quarter", 4)])
+def test_smaller_masks_trace_fewer_rays_and_differ_only_near_edges(mask_res, divisor, frames):
+    """``mask_res: half`` and ``quarter`` trace about 1/4 and 1/16 of full's rays (castle, 64 x
+    64), give fractional V (bilinear magnification) and differ from full's V only within
+    ``divisor`` pixels of a change in full's V or in coverage: where V is uniform around a
+    pixel every ray that magnification reads agrees. Catches quarter traced as half (ratio
+    0.25), and a mask texel's ray from a pixel outside its own block (run with the pixel at
+    texel x divisor + 3 divisor: both fail)."""
+    from scipy import ndimage
+
+    frame = frame_of(frames, ROOT / "scenes.yaml", "castle")
+    full, full_extra = visibility(frame, "rt")
+    low, low_extra = visibility(frame, "rt", {"mask_res": mask_res})
+    ratio = low_extra["rays"] / full_extra["rays"]
+    assert 0.7 / divisor ** 2 < ratio < 1.3 / divisor ** 2, ratio
+    covered = frame.arrays.covered
+    assert len(np.unique(low[covered])) > 2
+    changes = on_a_boundary(full, np.ones_like(covered)) | on_a_boundary(
+        covered.astype(np.float32), np.ones_like(covered))
+    near = ndimage.binary_dilation(changes, structure=np.ones((3, 3), bool),
+                                   iterations=divisor)
+    differ = (low != full) & covered
+    assert differ.any() and not (differ & ~near).any()
