@@ -63,7 +63,7 @@ def frames(args) -> None:
             technique, _, params = run.partition(":")
             row = evaluate(scene, technique, json.loads(params) if params else {},
                            frames=args.frames, warmup=1, samples=1).row
-            passes = ", ".join(f"{p['name']} {p['ms']:.1f}" for p in row["passes"] or [])
+            passes = ", ".join(f"{p['name']} {p['ms']:.1f}" for p in row.get("passes") or [])
             print(f"{name} {args.size}^2 {technique} {params or '{}'}: {row['status']} "
                   f"time_ms {row['time_ms'] or float('nan'):.1f} ({passes}) prepare_ms "
                   f"{row.get('prepare_ms')} cpu_contention {row.get('cpu_contention')} "
