@@ -61,6 +61,9 @@ COLUMN_TABLE: tuple[Column, ...] = (
            "parses it into a list", _ERROR),
     Column("cost", str, "", "the cost policy: `dynamic` (every frame redoes what depends on "
            "light and geometry) or `static` (that is setup_ms)"),
+    Column("prepare_ms", float, "ms", "the wall time of the technique's `prepare` (GL work "
+           "included), once per run: one-off preprocessing (edge meshes, bottom-level BVHs), "
+           "uploads, shaders; charged in no frame under either policy", _ERROR),
     Column("setup_ms", float, "ms", "under `static`: the update's median time, done once",
            "under `dynamic`, or the run failed"),
     Column("setup_ms_ci_low", float, "ms", "lower end of setup_ms's 95% interval",
@@ -89,6 +92,10 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("primitives", float, "count", "primitives reaching the rasteriser", _COUNTERS),
     Column("compute_invocations", float, "count", "compute shader invocations (the GPU "
            "reductions)", _COUNTERS),
+    Column("traversal_nodes", float, "count", "BVH nodes a ray-traced technique's rays visited "
+           "in one frame (counted in an untimed repeat)", "for a technique that traces no rays"),
+    Column("triangle_tests", float, "count", "ray-triangle tests of those rays in one frame",
+           "as traversal_nodes"),
     Column("gpu_estimate_ms", float, "ms", "the counted work priced at an RTX 4090's peak rates "
            "(harness.cost_model: a lower bound)", _COUNTERS),
     Column("mae", float, "V (0..1)", f"mean |V - V_ref| {_COMPARED}", _ERROR),

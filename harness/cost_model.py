@@ -6,10 +6,14 @@
                 + per_fetch_ms    * fetches             (fetches_per_px * covered_px)
                 + per_byte_ms     * bytes               (mem_bytes: the maps, written each frame)
                 + per_compute_ms  * compute_invocations (the GPU reductions, e.g. the warps')
+                + per_node_ms     * traversal_nodes     (BVH nodes visited by a frame's rays)
+                + per_test_ms     * triangle_tests      (ray-triangle tests of a frame's rays)
 
 Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
 each map pass (indexed meshes), and the volume vertices a shadow-volume pass extrudes. Compute
 invocations count the reductions' work (one invocation per 16-pixel column of each dispatch).
+A ray-traced technique counts its traversal's work in an untimed repeat (``traversal_nodes``,
+``triangle_tests``: per frame, over all its rays); a row without them did none (0).
 
 All inputs are per frame and stored in each results row, so any estimate can be recomputed
 from results.csv. Two coefficient sets:
@@ -22,8 +26,12 @@ NVIDIA, "NVIDIA Ada GPU Architecture" whitepaper (2023), appendix table "GeForce
 GDDR6X at 21 Gbps gives 1008 GB/s (per byte). The whitepaper gives no vertex rate: per vertex
 assumes 64 FP32 operations (two 4x4 matrix-vector products, what our vertex shaders do) at the
 whitepaper's 82.6 TFLOPS (1.29e12 vertices/s); per compute invocation likewise (a reduction's
-pixel: up to three 4x4 matrix-vector products and a shared-memory step). Pass overhead is not
-modelled (0).
+pixel: up to three 4x4 matrix-vector products and a shared-memory step); per node visited 40
+FP32 operations (two slab tests: 12 multiply-subtracts and 12 min/max each, and their
+compares), per triangle test 40 (Woop et al.'s shear and three 2D edge functions: about 30,
+with the distance). A compute traversal on such a GPU is bound by its memory latency more
+than by these rates (and RT cores do the same work in fixed function), so for rays the bound
+is the loosest. Pass overhead is not modelled (0).
 
 ``LLVMPIPE``: fitted here by non-negative least squares (:func:`fit`) to llvmpipe's measured
 ``time_ms``, so the model's fit is checkable: ``python -m harness.cost_model DIR`` prints R^2
@@ -42,7 +50,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-FEATURES = ("passes", "vertices", "fragments", "fetches", "bytes", "computes")
+FEATURES = ("passes", "vertices", "fragments", "fetches", "bytes", "computes", "nodes", "tests")
 
 
 @dataclass(frozen=True)
@@ -57,10 +65,13 @@ class Coefficients:
     per_fetch_ms: float
     per_byte_ms: float
     per_compute_ms: float
+    per_node_ms: float = 0.0
+    per_test_ms: float = 0.0
 
     def vector(self) -> np.ndarray:
         return np.array([self.per_pass_ms, self.per_vertex_ms, self.per_fragment_ms,
-                         self.per_fetch_ms, self.per_byte_ms, self.per_compute_ms])
+                         self.per_fetch_ms, self.per_byte_ms, self.per_compute_ms,
+                         self.per_node_ms, self.per_test_ms])
 
 
 RTX_4090 = Coefficients(
@@ -73,6 +84,8 @@ RTX_4090 = Coefficients(
     per_fetch_ms=1e3 / 1290.2e9,
     per_byte_ms=1e3 / 1008e9,
     per_compute_ms=1e3 / (82.6e12 / 64),
+    per_node_ms=1e3 / (82.6e12 / 40),
+    per_test_ms=1e3 / (82.6e12 / 40),
 )
 
 # Fitted under cost: dynamic (every frame charged its maps, fits and reductions; indexed scene
@@ -95,6 +108,9 @@ LLVMPIPE = Coefficients(
     per_fetch_ms=2.581e-5,
     per_byte_ms=0.0,
     per_compute_ms=2.582e-4,
+    # not in that fit (it predates rt): 0 until refitted over runs that trace rays
+    per_node_ms=0.0,
+    per_test_ms=0.0,
 )
 
 GPU = RTX_4090  # what results rows store as gpu_estimate_ms
@@ -119,8 +135,9 @@ def features(row: dict) -> np.ndarray | None:
     if passes is None or any(v is None for v in values):
         return None
     vertices, fragments, fetches_per_px, covered_px, mem_bytes, computes = values
+    traversal = [_number(row.get(k)) or 0.0 for k in ("traversal_nodes", "triangle_tests")]
     return np.array([len(passes), vertices, fragments, fetches_per_px * covered_px, mem_bytes,
-                     computes])
+                     computes, *traversal])
 
 
 def estimate_ms(row: dict, coefficients: Coefficients = GPU) -> float | None:

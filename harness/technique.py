@@ -107,6 +107,12 @@ class Technique:
         if reason:
             raise NotApplicable(f"{cls.name} does not treat a {light.type} light: {reason}")
 
+    @classmethod
+    def check_scene(cls, params: TechniqueParams, scene: BuiltScene) -> None:
+        """Raise ValueError ``"<parameter>: <why>"`` where ``params`` cannot run on ``scene``
+        at all (memory it would take over a budget parameter): the plan refuses that as bad
+        input, naming the experiment's key, before anything is built or run."""
+
     def prepare(self, frame: "Frame") -> None:
         """Allocate GL resources and upload what depends on geometry (where objects move,
         as at frame 0, then moved by :attr:`Frame.part_poses`)."""

@@ -220,7 +220,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         raise cfg.ConfigError(f"{exp_path}: plans {raw:,} runs before duplicate points are merged, "
                               f"far more than the limit of {exp.max_runs:,} (max_runs){worst}; "
                               f"{_raise_it(raw)}")
-    points: dict[tuple, None] = {}
+    points: dict[tuple, str] = {}  # each point with the key that first asks for it
     for scene_name in wanted_scenes:
         for width, height in exp.resolutions or [all_scenes[scene_name].resolution]:
             for tech, tech_grids in scene_grids(scene_name).items():
@@ -230,10 +230,11 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                         line = cfg._line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
+                        where = where if experiment_path else "--set"
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
-                                                 where if experiment_path else "--set")
-                        points[scene_name, width, height, tech,
-                               json.dumps(params, sort_keys=True)] = None
+                                                 where)
+                        points.setdefault((scene_name, width, height, tech,
+                                           json.dumps(params, sort_keys=True)), where)
     if len(points) > exp.max_runs:
         raise cfg.ConfigError(f"{exp_path}: plans {len(points):,} runs, more than the limit of "
                               f"{exp.max_runs:,} (max_runs); {_raise_it(len(points))}")
@@ -244,9 +245,14 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
              for name in wanted_scenes}
     versions = {tech: registered[tech].code_version() for tech in grids}
     runs: list[RunSpec] = []
-    for scene_name, width, height, tech, params_json in points:
+    for (scene_name, width, height, tech, params_json), where in points.items():
         own = settings.get(scene_name, (cfg.SceneSettings(), ()))[0]
         scene_at = built[scene_name].with_resolution(width, height)
+        cls = registered[tech]
+        try:  # a setting that cannot run on the scene at all (Technique.check_scene)
+            cls.check_scene(cls.Params(**json.loads(params_json)), scene_at)
+        except ValueError as e:
+            raise cfg.ConfigError(f"{where}: {tech}.{e} (scene {scene_name})") from None
         # a moving scene's run measures each frame of its sequence once
         frames = (scene_at.frames if scene_at.frames > 1
                   else exp.frames if own.frames is None else own.frames)

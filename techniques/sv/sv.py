@@ -148,7 +148,7 @@ class ShadowVolumes(Technique):
         self.scene_program = self.shader(__file__, "gbuffer.vert.glsl", "sv_fill.frag.glsl")
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "sv_visibility.frag.glsl")
+                                              "../common/mask_visibility.frag.glsl")
 
     def _volume_geometry(self, frame: Frame):
         """The volumes and, for nearclip, the near-plane clip polygons: what the volume pass

@@ -181,3 +181,35 @@ def test_the_dashboard_names_the_policy_on_every_cost_axis(tmp_path, make_result
     assert "setup_ms (static): setup time" in page
     assert "time ms (static)" in page and "setup ms (static)" in page
     assert "(dynamic)" not in page
+
+
+class _SecondsClock:
+    """A stand-in for harness.run.measure's ``time``: every read of ``perf_counter`` is one
+    second after the last."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        self.now += 1.0
+        return self.now
+
+
+@pytest.mark.parametrize("cost", ["dynamic", "static"])
+def test_prepare_is_reported_once_and_charged_in_no_frame(cost, scene_at, evaluate,
+                                                          monkeypatch):
+    """prepare_ms is the wall time of the technique's prepare alone, once per run, under either
+    policy, and no frame holds it: with run.measure's clock ticking one second per read and
+    every pass one millisecond (harness.gl.measure's ticking clock), sm's prepare_ms is exactly
+    1000 and its frame 3 passes (dynamic) or 1 (static) of 1 ms. Catches prepare_ms missing
+    (run against a _start that drops it: None), and a prepare_ms measured over more than the
+    one call wherever that reads the run's clock (each read adds a second)."""
+    from harness.gl import measure as pass_measure
+    from harness.run import measure
+
+    monkeypatch.setattr(measure, "time", _SecondsClock())
+    monkeypatch.setattr(pass_measure, "time", _TickingClock())
+    row = evaluate(scene_at("box_plane", 32), "sm", frames=3, warmup=2, cost=cost).row
+    assert row["status"] == "ok", row.get("error")
+    assert row["prepare_ms"] == 1000.0
+    assert row["time_ms"] == pytest.approx(3.0 if cost == "dynamic" else 1.0)

@@ -140,11 +140,14 @@ def test_without_pipeline_statistics_columns_are_empty_and_the_manifest_says_why
 
 def test_fit_recovers_known_coefficients():
     """Rows made from known coefficients: the fit returns them and reports R^2 = 1 and no
-    error; the stored llvmpipe coefficients are non-negative.
+    error; the stored llvmpipe coefficients are non-negative. Half the rows traced rays
+    (traversal nodes and triangle tests), the others have no such columns (no work: 0).
 
-    Catches: features in another order than the coefficients, scaling not undone."""
+    Catches: features in another order than the coefficients, scaling not undone, a row
+    without traversal counts taken as unusable."""
     rng = np.random.default_rng(0)
-    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6)
+    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6, 5e-7,
+                                    7e-7)
     rows = []
     for i in range(40):
         row = {"status": "ok", "scene": "s", "width": 8, "height": 8, "technique": "t",
@@ -155,6 +158,9 @@ def test_fit_recovers_known_coefficients():
                "covered_px": int(rng.integers(10**3, 10**6)),
                "mem_bytes": int(rng.integers(0, 2**26)),
                "compute_invocations": int(rng.integers(0, 10**6))}
+        if i % 2:
+            row.update(traversal_nodes=int(rng.integers(10**4, 10**7)),
+                       triangle_tests=int(rng.integers(10**3, 10**6)))
         row["time_ms"] = cost_model.estimate_ms(row, truth)
         rows.append(row)
     fitted = cost_model.fit(rows)

@@ -1,7 +1,8 @@
-// V from the normalised shadow mask. Each mask texel is snapped to 0 (shadow) or 1 (lit) at
-// the midpoint between the two levels the normalisation leaves, so 8-bit rounding never
-// shows; a mask smaller than the image is magnified bilinearly (section 4.5), which gives
-// fractional V near shadow edges.
+// V from a shadow mask: sv's normalised shadow-volume mask, rt's ray mask. Each mask texel is
+// snapped to 0 (shadow) or 1 (lit) at lit_threshold in channel mask_channel (for sv, the
+// midpoint between the two levels the normalisation leaves, so 8-bit rounding never shows);
+// a mask smaller than the image is magnified bilinearly (Roettger et al. section 4.5), which
+// gives fractional V near shadow edges.
 #include "gbuffer_read.glsl"
 
 uniform sampler2D shadow_mask;

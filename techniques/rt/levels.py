@@ -1,0 +1,120 @@
+"""The two-level BVH as engines build one, in buffer textures for ``rt_trace.comp.glsl``.
+
+Bottom level: one BVH per part over its triangles in the part's own space (as ``prepare`` saw
+it, frame 0), built once. Top level: one BVH over the parts' instances, the boxes of their
+bottom-level roots moved by their poses (``Frame.part_poses``), rebuilt by :meth:`rebuild_top`
+(one leaf per instance). Everything is read through buffer textures (``texelFetch``): the
+harness measured llvmpipe's storage-buffer loads 1.9x slower (``harness.gl.geometry``), and
+for this traversal, the same shader reading std430 storage buffers instead (same V, bit for
+bit) took 639 and 414 ms against 319 and 149 ms for castle's trace pass at 512^2, and 1171
+and 520 against 1080 and 151 ms on architecture at 10^5 triangles (two alternating rounds on
+2 busy cores, contention 0.57-0.93: noisy, but storage buffers slower every time).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from OpenGL import GL
+
+from harness.gl.geometry import BufferTexture
+
+from . import bvh
+
+TRIANGLE_BYTES = 48  # three RGBA32F texels
+INSTANCE_BYTES = 64  # four RGBA32F texels
+
+
+def bound_bytes(triangles: int) -> int:
+    """Bytes the bottom levels may take for ``triangles``, whatever the builder: every
+    triangle's texels and a binary tree's most nodes (one triangle per leaf). The budget
+    check refuses a scene on this before building anything."""
+    return triangles * TRIANGLE_BYTES + bvh.max_nodes(triangles) * bvh.NODE_BYTES
+
+
+def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):
+    """World boxes of boxes ``lo``/``hi`` (P, 3) moved by ``poses`` (P, 4, 4), over their 8
+    corners in float64, widened to the next float32 outwards (never smaller than exact)."""
+    pick = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], bool)
+    corners = np.where(pick[None], hi[:, None].astype(np.float64), lo[:, None])
+    moved = np.einsum("pij,pcj->pci", poses[:, :3, :3], corners) + poses[:, None, :3, 3]
+    low = np.nextafter(moved.min(1).astype(np.float32), np.float32(-np.inf))
+    high = np.nextafter(moved.max(1).astype(np.float32), np.float32(np.inf))
+    return low, high
+
+
+class TwoLevelBvh:
+    """Bottom levels of ``parts`` (those with triangles) by ``build`` with ``leaf_size``."""
+
+    def __init__(self, parts, build: str, leaf_size: int):
+        self.used = [i for i, part in enumerate(parts) if len(part.faces)]
+        nodes, triangles, roots, depths = [], [], [], []
+        node_offset = triangle_offset = 0
+        for i in self.used:  # one build per part, each vectorised over its triangles
+            part = parts[i]
+            corners = part.vertices[part.faces]
+            tree = bvh.build(corners.min(1), corners.max(1), build, leaf_size)
+            nodes.append(tree.texels(node_offset, triangle_offset))
+            padded = np.zeros((len(tree.order), 3, 4), np.float32)
+            padded[..., :3] = corners[tree.order]
+            triangles.append(padded.reshape(-1, 4))
+            roots.append((node_offset, tree.lo[0], tree.hi[0]))
+            depths.append(tree.depth)
+            node_offset += tree.nodes
+            triangle_offset += len(tree.order)
+        self.empty = not self.used
+        self.node_count, self.triangle_count = node_offset, triangle_offset
+        self.root_nodes = np.array([r[0] for r in roots], np.uint32)
+        self.root_lo = np.array([r[1] for r in roots], np.float32).reshape(-1, 3)
+        self.root_hi = np.array([r[2] for r in roots], np.float32).reshape(-1, 3)
+        self.bottom_depth = max(depths, default=0)
+        self.top_nodes = bvh.max_nodes(len(self.used))
+        self.top_depth = bvh.lbvh_depth_bound(len(self.used))  # whatever the poses
+        empty = np.zeros((1, 4), np.float32)
+        self.nodes = BufferTexture(np.concatenate(nodes) if nodes else empty, GL.GL_RGBA32F)
+        self.triangles = BufferTexture(np.concatenate(triangles) if triangles else empty,
+                                       GL.GL_RGBA32F)
+        self.top = BufferTexture(np.zeros((2 * self.top_nodes, 4), np.float32), GL.GL_RGBA32F,
+                                 dynamic=True)
+        self.instances = BufferTexture(np.zeros((4 * max(len(self.used), 1), 4), np.float32),
+                                       GL.GL_RGBA32F, dynamic=True)
+
+    @property
+    def stack_size(self) -> int:
+        """Entries the traversal's stack needs: one push per level of either tree."""
+        return self.top_depth + self.bottom_depth + 1
+
+    @property
+    def bottom_bytes(self) -> int:
+        return self.node_count * bvh.NODE_BYTES + self.triangle_count * TRIANGLE_BYTES
+
+    @property
+    def nbytes(self) -> int:
+        return self.bottom_bytes + self.top_nodes * bvh.NODE_BYTES + \
+            len(self.used) * INSTANCE_BYTES
+
+    def rebuild_top(self, poses: np.ndarray) -> None:
+        """Build the top level over the instances at ``poses`` (all parts' (P, 4, 4)) and
+        upload it with each instance's world-to-object transform, in the top level's leaf
+        order."""
+        if self.empty:
+            return
+        poses = np.asarray(poses, np.float64)[self.used]
+        lo, hi = _moved_boxes(self.root_lo, self.root_hi, poses)
+        top = bvh.build(lo, hi, "lbvh", leaf_size=1)
+        self.top.write(top.texels())
+        instances = np.zeros((len(self.used), 4, 4), np.float32)
+        instances[:, :3] = np.linalg.inv(poses)[:, :3]
+        instances[:, 3, 0] = self.root_nodes.view(np.float32)
+        self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
+
+    def bind(self, program, first_unit: int) -> int:
+        """Bind the four buffer textures to ``program``'s samplers; returns the next unit."""
+        program.set(nodes=self.nodes.bind(first_unit),
+                    triangles=self.triangles.bind(first_unit + 1),
+                    tlas=self.top.bind(first_unit + 2),
+                    instances=self.instances.bind(first_unit + 3))
+        return first_unit + 4
+
+    def release(self) -> None:
+        for texture in (self.nodes, self.triangles, self.top, self.instances):
+            texture.release()

@@ -1,0 +1,136 @@
+// One any-hit shadow ray per mask texel, from the G-buffer point at the texel's centre pixel
+// to the light, through a two-level BVH (rt_bvh.py): the top level over the parts' instances
+// in world space, each leaf one instance whose bottom-level BVH is in the part's own space
+// (the ray moved there by the instance's world-to-object transform). One stack serves both
+// levels (Aila and Laine 2009's while-while loop, one level at a time). Early exit on the
+// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes visited, triangle tests
+// and whether it was occluded, per ray, to `counts`.
+layout(local_size_x = 16, local_size_y = 16) in;
+
+layout(r32f, binding = 0) writeonly uniform image2D mask;
+#ifdef COUNT
+layout(rgba32ui, binding = 1) writeonly uniform uimage2D counts;
+#endif
+uniform sampler2D gbuffer_position;
+uniform sampler2D gbuffer_normal;
+uniform samplerBuffer nodes;      // all parts' bottom-level nodes: (lo, first), (hi, count)
+uniform samplerBuffer triangles;  // 3 texels (vertices) per triangle, in leaf order
+uniform samplerBuffer tlas;       // top-level nodes, the same layout; a leaf is one instance
+uniform samplerBuffer instances;  // 4 texels: rows of world-to-object 3x4, (root node, ...)
+uniform int divisor;              // image pixels per mask texel along each axis
+uniform bool directional;
+uniform vec3 light;               // directional: unit vector towards the light; else position
+uniform vec3 camera_position;
+
+#include "rt_offset.glsl"
+#include "rt_watertight.glsl"
+
+uint bits(float f) { return floatBitsToUint(f); }
+
+// Slab test with the far distance widened by 1 + 2 gamma(3) (Ize 2013, "Robust BVH ray
+// traversal"), so rounding never rejects a box the ray touches: with the watertight triangle
+// test it keeps a ray aimed at a shared edge from slipping between two boxes.
+bool box_hit(vec3 lo, vec3 hi, vec3 origin, vec3 inv, float tmax) {
+    vec3 t0 = (lo - origin) * inv, t1 = (hi - origin) * inv;
+    vec3 near = min(t0, t1), far = max(t0, t1);
+    float enter = max(max(near.x, near.y), max(near.z, 0.0));
+    float leave = min(min(far.x, far.y), min(far.z, tmax)) * 1.0000004;
+    return enter <= leave;
+}
+
+vec3 safe_inverse(vec3 d) {
+    const float tiny = 1e-30;  // a zero component: a huge inverse of its sign, never inf * 0
+    vec3 s = vec3(greaterThanEqual(d, vec3(0.0))) * 2.0 - 1.0;
+    return 1.0 / mix(d, s * tiny, lessThan(abs(d), vec3(tiny)));
+}
+
+// true where the segment (origin, origin + t dir), 0 < t < tmax, meets a triangle
+bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, out uint tested) {
+    uint stack[STACK_SIZE];
+    int sp = 0, floor_sp = 0;
+    bool bottom = false;
+    uint node = 0u;
+    vec3 origin = world_origin, dir = world_dir, inv = safe_inverse(dir);
+    Watertight ray;
+    visited = 0u;
+    tested = 0u;
+    while (true) {
+        int at = int(2u * node);
+        vec4 a = bottom ? texelFetch(nodes, at) : texelFetch(tlas, at);
+        vec4 b = bottom ? texelFetch(nodes, at + 1) : texelFetch(tlas, at + 1);
+        visited++;
+        if (box_hit(a.xyz, b.xyz, origin, inv, tmax)) {
+            uint first = bits(a.w), count = bits(b.w);
+            if (count == 0u) {
+                stack[sp++] = first + 1u;
+                node = first;
+                continue;
+            }
+            if (bottom) {
+                for (uint i = first; i < first + count; ++i) {
+                    tested++;
+                    int t = int(3u * i);
+                    if (watertight_hit(ray, texelFetch(triangles, t).xyz,
+                                       texelFetch(triangles, t + 1).xyz,
+                                       texelFetch(triangles, t + 2).xyz, tmax)) {
+                        return true;
+                    }
+                }
+            } else {  // an instance: into the part's space, down its bottom level
+                int k = int(4u * first);
+                mat4x3 to_object = transpose(mat3x4(texelFetch(instances, k),
+                                                    texelFetch(instances, k + 1),
+                                                    texelFetch(instances, k + 2)));
+                origin = to_object * vec4(world_origin, 1.0);
+                dir = to_object * vec4(world_dir, 0.0);
+                inv = safe_inverse(dir);
+                ray = watertight_setup(origin, dir);
+                bottom = true;
+                floor_sp = sp;
+                node = bits(texelFetch(instances, k + 3).x);
+                continue;
+            }
+        }
+        if (bottom && sp == floor_sp) {  // the instance is done: back to the top level
+            bottom = false;
+            origin = world_origin;
+            dir = world_dir;
+            inv = safe_inverse(dir);
+        }
+        if (sp == 0) {
+            return false;
+        }
+        node = stack[--sp];
+    }
+}
+
+void main() {
+    ivec2 texel = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(texel, imageSize(mask)))) {
+        return;
+    }
+    ivec2 size = textureSize(gbuffer_position, 0);
+    ivec2 pixel = min(texel * divisor + divisor / 2, size - 1);
+    vec4 p = texelFetch(gbuffer_position, pixel, 0);
+    float v = 1.0;
+    uint visited = 0u, tested = 0u;
+    if (p.w > 0.5) {
+        // the visible side (the normal turned to the camera) facing away from the light
+        // receives no light: V = 0 and no ray, as engines skip it (harness.metrics'
+        // receives_light: such pixels are never compared)
+        vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
+        n = dot(n, camera_position - p.xyz) >= 0.0 ? n : -n;
+        vec3 to_light = directional ? light : light - p.xyz;
+        v = 0.0;
+        if (dot(n, to_light) > 0.0) {
+            vec3 origin = offset_ray(p.xyz, n);
+            vec3 dir = directional ? light : light - origin;
+            float tmax = directional ? 3.0e38 : 1.0;
+            v = occluded(origin, dir, tmax, visited, tested) ? 0.0 : 1.0;
+        }
+    }
+    imageStore(mask, texel, vec4(v));
+#ifdef COUNT
+    imageStore(counts, texel, uvec4(visited, tested, v == 0.0 ? 1u : 0u, 0u));
+#endif
+}
