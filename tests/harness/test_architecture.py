@@ -155,3 +155,16 @@ def test_no_import_cycle_type_only_imports_included():
 def test_the_cycle_finder_finds_a_type_only_cycle():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert cycles(graph) == [["a", "b", "c"]]
+
+
+def test_the_independence_contract_names_every_technique_package():
+    """Every package under techniques/ but common is in the independence contract, so a new
+    technique cannot import another unseen. Catches a package added without its line
+    (techniques.rt was, until this test)."""
+    import tomllib
+
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    (independent,) = [c for c in contracts["contracts"] if c["type"] == "independence"]
+    packages = {f"techniques.{p.name}" for p in (ROOT / "techniques").iterdir()
+                if (p / "__init__.py").is_file() and p.name != "common"}
+    assert set(independent["modules"]) == packages
