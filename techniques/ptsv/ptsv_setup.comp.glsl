@@ -1,0 +1,65 @@
+// One invocation per scene triangle: its shadow volume's four planes from the frame's light,
+// then the root test. Edge-on triangles cast no volume (as sv's per-triangle volumes); a volume
+// the root box lies outside of is culled; one that holds the root box marks the root; any
+// other is queued for the level below the root. Every triangle casts, turned toward the light
+// (an open part's back-facing triangle shadows as much as a front-facing one).
+#include "ptsv_volume.glsl"
+
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer Vertices { float vertex_data[]; };  // xyz per vertex
+layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 3 per triangle
+uniform vec4 light;  // (position, 1) for a spot or point light, (-direction, 0) directional
+uniform uint triangle_count;
+uniform uint root;  // the root's node number
+uniform uint root_level;
+
+vec3 corner(uint triangle, uint k) {
+    uint i = 3u * index_data[3u * triangle + k];
+    return vec3(vertex_data[i], vertex_data[i + 1u], vertex_data[i + 2u]);
+}
+
+// The plane through p with normal along n, turned so that `inner` lies on its negative side.
+vec4 plane_through(vec3 n, vec3 p, vec3 inner) {
+    n = normalize(n);
+    if (dot(n, inner - p) > 0.0) n = -n;
+    return vec4(n, -dot(n, p));
+}
+
+void main() {
+    uint triangle = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
+        + gl_LocalInvocationIndex;
+    if (triangle >= triangle_count) return;
+    vec3 p[3] = vec3[3](corner(triangle, 0u), corner(triangle, 1u), corner(triangle, 2u));
+    vec3 n = cross(p[1] - p[0], p[2] - p[0]);
+    vec3 to_light = light.xyz - p[0] * light.w;
+    float facing = dot(n, to_light);
+    if (abs(facing) <= EDGE_ON * length(n) * length(to_light)) {
+        TALLY(COUNT_CULLED);
+        return;
+    }
+    vec4 volume[4];
+    // the triangle's plane: the light on its positive side, so the shadow is behind it
+    vec3 toward = normalize(facing > 0.0 ? n : -n);
+    volume[0] = vec4(toward, -dot(toward, p[0]));
+    for (int k = 0; k < 3; ++k) {
+        vec3 a = p[k], b = p[(k + 1) % 3];
+        vec3 edge_normal = cross(b - a, light.xyz - a * light.w);
+        volume[k + 1] = plane_through(edge_normal, a, p[(k + 2) % 3]);
+    }
+    TALLY(COUNT_NODE_TESTS);
+    vec3 lo, hi;
+    node_box(root, lo, hi);
+    int test = classify(volume, lo, hi);
+    if (test < 0) {
+        TALLY(COUNT_CULLED);
+    } else if (test > 0) {
+        mark_node(root);
+        TALLY(COUNT_ACCEPTS);
+        TALLY(COUNT_ROOT_ACCEPTS);
+    } else {
+        uint queued = atomicAdd(counters[COUNT_VOLUMES], 1u);
+        if (queued >= volume_capacity) return;  // counted: the caller makes room, runs again
+        for (uint k = 0u; k < 4u; ++k) planes[4u * queued + k] = volume[k];
+        push(root_level, queued, 0u);
+    }
+}
