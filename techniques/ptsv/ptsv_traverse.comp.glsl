@@ -2,7 +2,8 @@
 // node's TILE x TILE children against the volume, one invocation per child. Below level 1 the
 // children are samples (the G-buffer's positions at the mask's resolution): one inside the
 // volume is marked shadowed. Above it they are nodes: one outside is skipped, one inside is
-// marked shadowed as a whole, any other is queued for the next level down. ITEMS_PER_GROUP
+// marked shadowed as a whole, any other is queued for the next level down. A child already
+// marked (by another volume) is skipped: marks only ever go from lit to shadowed. ITEMS_PER_GROUP
 // items share a work group; nothing depends on the subgroup's size.
 #include "ptsv_volume.glsl"
 #include "ptsv_samples.glsl"
@@ -27,15 +28,16 @@ void main() {
     vec4 volume[4] = volume_planes(queued.x);
     if (level == 1u) {
         vec4 p = sample_position(child);
-        if (p.w < 0.5) return;
+        if (p.w < 0.5 || marks[index] != 0u) return;  // already shadowed: nothing to learn
         TALLY(COUNT_SAMPLE_TESTS);
         if (inside_volume(volume, p.xyz)) marks[index] = 1u;
         return;
     }
-    TALLY(COUNT_NODE_TESTS);
+    if (marks[sample_count + child_first + index] != 0u) return;  // shadowed whole already
     vec3 lo, hi;
     node_box(child_first + index, lo, hi);
     if (any(greaterThan(lo, hi))) return;
+    TALLY(COUNT_NODE_TESTS);
     int test = classify(volume, lo, hi);
     if (test > 0) {
         mark_node(child_first + index);

@@ -17,7 +17,7 @@ from .hierarchy import SampleHierarchy
 MASK_DIVISOR = {"full": 1, "half": 2, "quarter": 4}
 # a point this far behind its own triangle's plane, relative to the scene's largest coordinate,
 # counts as shadowed by it: float32 G-buffer positions and planes lie within ~1e-7 of it
-TIE = 2.0 ** -17
+TIE = 2.0 ** -20
 
 
 class PerTriangleShadowVolumes(Technique):
@@ -40,7 +40,7 @@ class PerTriangleShadowVolumes(Technique):
     a sample or any node above it was marked. Samples are tested where they are, so open parts,
     triangle soups and the camera inside a shadow need nothing special, and there is no near or
     far plane to clip against. A point exactly on its own triangle's plane (within float32
-    rounding, 2^-17 of the scene's largest coordinate) is not shadowed by it.
+    rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it.
 
     Counted in an untimed repeat whenever the light, the camera or an object moved:
     ``node_tests`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes marked
@@ -53,7 +53,7 @@ class PerTriangleShadowVolumes(Technique):
     Parameter       Meaning                                               Default  Range
     ==============  ====================================================  =======  ===========
     ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile   tiles
-    ``tile``        children per node along each axis (a power of two)    8        2 .. 16
+    ``tile``        children per node along each axis (a power of two)    2        2 .. 16
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
                     magnification, as sv)
@@ -65,12 +65,12 @@ class PerTriangleShadowVolumes(Technique):
     paper = ("Sintorn, Olsson, Assarsson 2011, Per-triangle shadow volumes using a view-sample "
              "cluster hierarchy")
     # quality knob: the samples' resolution (error for time); the tile size changes cost only
-    quality_knobs = {"mask_res": ("quarter", "half", "full"), "tile": (4, 16)}
+    quality_knobs = {"mask_res": ("quarter", "half", "full"), "tile": (4, 8)}
     declines_lights = {}  # a volume is the same four planes for every light type
 
     class Params(TechniqueParams):
         hierarchy: Literal["tiles"] = "tiles"
-        tile: int = Field(8, ge=2, le=16)
+        tile: int = Field(2, ge=2, le=16)
         mask_res: Literal["full", "half", "quarter"] = "full"
 
         @field_validator("tile")
