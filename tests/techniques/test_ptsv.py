@@ -13,7 +13,6 @@ Broken versions each test was run against once (and failed):
   (root_accepts 0).
 """
 
-from pathlib import Path
 
 import numpy as np
 import pytest
