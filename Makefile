@@ -69,7 +69,7 @@ scale: setup
 
 # Timings saved as JSON under .benchmarks/<machine>/; compare checks a new run against the last
 # saved one without replacing it.
-BENCH_FLAGS := -q tests/benchmarks --benchmark-only -p no:randomly \
+BENCH_FLAGS := -q tests/microbench --benchmark-only -p no:randomly \
 	--benchmark-columns=min,median,max,stddev,rounds --benchmark-sort=name
 
 microbench: setup

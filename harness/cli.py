@@ -199,7 +199,7 @@ def cmd_reference(args) -> int:
     from .reference import compute_reference
     from .report import visibility_png
     from .results import inside, save_arrays
-    from .run.store import _exclusive, reference_array_path
+    from .run.store import exclusive, reference_array_path
     from .scene import load_scene
 
     # the bounds of an experiment's reference samples and of a scene's resolution
@@ -221,7 +221,7 @@ def cmd_reference(args) -> int:
     ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out):
+    with exclusive(out):
         path = inside(out, reference_array_path(scene.name, scene.width, scene.height,
                                                 args.samples, 0))
         extra = {"direct": ref.direct} if ref.direct is not None else {}

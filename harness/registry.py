@@ -11,10 +11,9 @@ from __future__ import annotations
 from functools import lru_cache
 from importlib.metadata import entry_points
 
+from .code_version import GROUP
 from .config import ConfigError
 from .technique import Technique, check_declined_lights, check_quality_knobs
-
-GROUP = "shadowbench.techniques"
 
 
 class RegistryError(ConfigError):

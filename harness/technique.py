@@ -26,9 +26,6 @@ part's rigid transform from those parts).
 
 from __future__ import annotations
 
-import hashlib
-import inspect
-import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +36,7 @@ from OpenGL import GL
 from pydantic import BaseModel, ConfigDict
 
 from . import metrics
+from .code_version import code_hash
 from .config import LIGHT_TYPES
 from .gbuffer import GBuffer
 from .gl.framebuffer import Framebuffer
@@ -128,11 +126,11 @@ class Technique:
 
     @classmethod
     def code_version(cls) -> str:
-        """Hash of the technique's code: its module, the sibling modules it imports, and the
-        .glsl files any of them names, following ``#include`` (a changed shared helper or
-        shader changes the version, so stored results are not reused)."""
-        source_file = Path(inspect.getsourcefile(cls))
-        return hashlib.sha256(b"".join(_code_files(source_file))).hexdigest()[:12]
+        """Hash of the technique's code: its module, the modules of technique packages it
+        imports, and the .glsl files any of them names, following ``#include``
+        (:mod:`harness.code_version`): a changed shared helper or shader changes the version,
+        so stored results are not reused."""
+        return code_hash(cls.__module__)
 
     @staticmethod
     def shader(module_file: str, vertex: str, fragment: str, **defines) -> Program:
@@ -363,31 +361,3 @@ def reset_gl_state() -> None:
     GL.glStencilMask(0xFF)
     while GL.glGetError() != GL.GL_NO_ERROR:
         pass
-
-
-# sibling modules a technique module imports: ``from .x import``, ``from pkg.x import``,
-# ``import pkg.x`` and ``from . import x, y``
-_SIBLING_IMPORT = re.compile(
-    r"^\s*(?:from\s+(?:\.|\w+\.)(\w+)\s+import|import\s+\w+\.(\w+)|from\s+\.\s+import\s+([\w, ]+))",
-    re.M)
-_GLSL_NAME = re.compile(r"[\w.]+\.glsl")
-
-
-def _code_files(start: Path) -> list[bytes]:
-    """Contents of ``start`` and of the sibling .py and .glsl files it reaches, in a fixed
-    order."""
-    folder, seen, queue = start.parent, set(), [start]
-    while queue:
-        path = queue.pop()
-        if path in seen or not path.is_file():
-            continue
-        seen.add(path)
-        text = path.read_text()
-        names = [f"{name.strip()}.py" for groups in _SIBLING_IMPORT.findall(text)
-                 for name in ",".join(groups).split(",") if name.strip()] \
-            if path.suffix == ".py" else []
-        names += _GLSL_NAME.findall(text)
-        queue.extend(folder / n for n in names)
-        queue.extend(HARNESS_GLSL / n for n in _GLSL_NAME.findall(text)
-                     if not (folder / n).is_file())
-    return [p.name.encode() + p.read_bytes() for p in sorted(seen)]

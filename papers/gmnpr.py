@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from harness import metrics
-from techniques import warp_equations
+from techniques.warps import warp_equations
 
 from .common import Claim, Runs, g, increasing
 

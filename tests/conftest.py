@@ -6,9 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parent.parent
-SCENE_FILE = ROOT / "scenes.yaml"
+from helpers import ROOT, SCENE_FILE
 
 os.environ.setdefault("SHADOWBENCH_CACHE", str(ROOT / ".cache" / "shadowbench"))
 

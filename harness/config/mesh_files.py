@@ -10,7 +10,7 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -18,8 +18,14 @@ from .mesh_formats import (check_numbers, check_vertices, declared_triangles, me
                            read_parts)
 from .yaml_source import check_regular_file, key_error
 
-if TYPE_CHECKING:
-    from .scene_schema import MeshFile
+
+
+class MeshSource(Protocol):
+    """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
+    this module stays below the schema, with no import of it)."""
+
+    path: str  # relative to the scene file, or absolute
+    up: str  # the file's up axis
 
 MESH_CACHE_VERSION = 1  # bump when what is cached (or how it is built) changes
 # y-up assets (most of them) turned so that their +y is the scene's +z
@@ -53,7 +59,7 @@ class MeshParts:
                 + (f", {self.dropped:,} degenerate dropped" if self.dropped else ""))
 
 
-def resolve_mesh_path(scene_path: Path, obj: MeshFile) -> Path:
+def resolve_mesh_path(scene_path: Path, obj: MeshSource) -> Path:
     p = Path(obj.path)
     return p if p.is_absolute() else Path(scene_path).parent / p
 
@@ -183,7 +189,7 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
         pass
 
 
-def _check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshFile,
+def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
                 triangle_budget: int | None = None) -> int:
     """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
     A file whose header declares more than ``triangle_budget`` is refused before loading."""

@@ -12,7 +12,7 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Fi
                       ValidationError, field_validator, model_validator)
 
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
-from .mesh_files import _check_mesh
+from .mesh_files import check_mesh
 from .yaml_source import ConfigError, check_name, format_validation_error, key_error, read_yaml
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
@@ -429,7 +429,7 @@ def load_scenes(path: str | Path, *,
                        triangle_budget)
         for i, obj in enumerate(scene.objects):
             copies = math.prod(obj.array.count if obj.array else (1, 1, 1))
-            one = (_check_mesh(path, node, name, i, obj, triangle_budget and
+            one = (check_mesh(path, node, name, i, obj, triangle_budget and
                                triangle_budget // copies)
                    if isinstance(obj, MeshFile) else obj.triangles())
             total += one * copies

@@ -20,7 +20,7 @@ class ShaderError(RuntimeError):
 def _resolve(name: str, here: Path) -> Path:
     for folder in (here, HARNESS_GLSL):
         if (folder / name).is_file():
-            return folder / name
+            return (folder / name).resolve()
     raise ShaderError(f"GLSL include {name!r} not found beside {here} or in {HARNESS_GLSL}")
 
 

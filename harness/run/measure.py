@@ -19,7 +19,8 @@ import numpy as np
 from .. import registry
 from ..timing import cpu_sample, others_time
 from .plan import RunSpec
-from .score import _first_columns, _observe, _one_line, _score, _Sequence, _sequence_score, _Truth
+from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one_line, score_run,
+                    sequence_score)
 
 # Runs of one scene and resolution are measured in interleaved rounds (each round renders one
 # measured frame of every run of a batch), so a burst of load from other processes spreads
@@ -47,7 +48,7 @@ class _Timed:
     technique: object = None
     output: object = None  # harness.technique.ShadowOutput
     measured: int = 0  # measured frames rendered so far
-    sequence: "_Sequence | None" = None  # a moving scene's run: what it keeps across frames
+    sequence: "SequenceState | None" = None  # a moving scene's run: what it keeps across frames
 
     @property
     def alive(self) -> bool:
@@ -81,7 +82,7 @@ def _release(timed: _Timed) -> None:
         try:
             timed.technique.release()
         except Exception as e:  # the run's result stands; a failed release only leaks
-            timed.row["warnings"] = f"release failed: {_one_line(e)}"
+            timed.row["warnings"] = f"release failed: {one_line(e)}"
         timed.technique = None
     timed.meter.release()
     if timed.setup is not None:
@@ -100,7 +101,7 @@ def _attempt(timed: _Timed, step, *args) -> bool:
     except NotApplicable as e:
         timed.row.update(status="skipped", error=str(e))
     except Exception as e:  # a technique's failure is its row's, not the sweep's
-        timed.row.update(status="error", error=_one_line(e))
+        timed.row.update(status="error", error=one_line(e))
         if os.environ.get("SHADOWBENCH_DEBUG"):
             traceback.print_exc()
     _release(timed)
@@ -204,7 +205,7 @@ def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_sce
     frame of the sequence: :func:`_run_sequence`, which calls ``on_frame(specs)`` with the
     runs that rendered it as each frame ends (for the progress bar's estimate)."""
     def start(spec):
-        return _start(spec, frame, _first_columns(spec, reference, scene_ms, frags_scene,
+        return _start(spec, frame, first_columns(spec, reference, scene_ms, frags_scene,
                                                   renderer))
 
     if frame.frames > 1:
@@ -222,7 +223,7 @@ def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_sce
                 yield timed.spec, timed.row, None
                 continue
             _release(timed)
-            yield (timed.spec, *_score(timed, frame, reference))
+            yield (timed.spec, *score_run(timed, frame, reference))
 
 
 def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
@@ -258,16 +259,16 @@ def _run_sequence(batches, frame, on_frame):
                 for timed in batch:
                     if timed.alive:
                         timed.row.update(status="error", error=f"scene {spec.scene} frame {t}: "
-                                                               f"{_one_line(e)}")
+                                                               f"{one_line(e)}")
                         _release(timed)
                 break
             traced_s += reference.seconds
-            truth = _Truth(t, reference, frame.compared_pixels(reference.covered))
+            truth = FrameTruth(t, reference, frame.compared_pixels(reference.covered))
             live = [timed for timed in batch if timed.alive]
             _measure_round(live, frame, t)
             for timed in live:
                 if timed.alive:
-                    _attempt(timed, _observe, timed, frame, truth, previous)
+                    _attempt(timed, observe_frame, timed, frame, truth, previous)
             on_frame([timed.spec for timed in live])
             previous = truth
         for timed in batch:
@@ -276,5 +277,5 @@ def _run_sequence(batches, frame, on_frame):
                 continue
             _release(timed)
             timed.row["ref_seconds"] = traced_s
-            yield (timed.spec, *_sequence_score(timed, frame))
+            yield (timed.spec, *sequence_score(timed, frame))
         frame.move_to(0)  # the next batch warms up at frame 0

@@ -16,7 +16,7 @@ from ..timing import NOISY_CONTENTION, median_interval
 from .plan import RunSpec
 
 
-def _one_line(e: BaseException) -> str:
+def one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {' '.join(str(e).split())}"[:500]
 
 
@@ -32,10 +32,10 @@ def failed_scene_row(spec: RunSpec, error: Exception) -> dict:
     """The row of a run whose scene could not be prepared (its reference or its frame failed):
     the scene's failure is its runs' error rows, not the end of the sweep."""
     return {**_run_columns(spec), "status": "error",
-            "error": f"scene {spec.scene} {spec.width}x{spec.height}: {_one_line(error)}"}
+            "error": f"scene {spec.scene} {spec.width}x{spec.height}: {one_line(error)}"}
 
 
-def _first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
+def first_columns(spec: RunSpec, reference, scene_ms: float, frags_scene: int,
                    renderer: str) -> dict:
     return {**_run_columns(spec), "scene_ms": scene_ms, "frags_scene": frags_scene,
             "renderer": renderer, "ref_seconds": reference.seconds,
@@ -96,7 +96,7 @@ def _clean(v: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class _Truth:
+class FrameTruth:
     """A frame's reference as the metrics see it, shared by the runs scored against it: the
     compared pixels, V_ref in float64 and its edge band."""
 
@@ -110,7 +110,7 @@ class _Truth:
         self.edge_floor = metrics.edge_floor(self.visibility, mask=self.mask, band=self.band)
 
 
-def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> tuple[dict, dict]:
+def _metric_columns(v_clean: np.ndarray, frame, truth: FrameTruth) -> tuple[dict, dict]:
     """The error metrics of one frame's V against its reference on the compared pixels, and
     the shaded images where the scene asks for shading."""
     v, ref_v, mask, band = v_clean.astype(np.float64), truth.visibility, truth.mask, truth.band
@@ -143,7 +143,7 @@ def _metric_columns(v_clean: np.ndarray, frame, truth: _Truth) -> tuple[dict, di
     return columns, images
 
 
-def _frame_arrays(output, frame, truth: _Truth, images: dict) -> dict[str, np.ndarray]:
+def _frame_arrays(output, frame, truth: FrameTruth, images: dict) -> dict[str, np.ndarray]:
     """V, coverage, the compared pixels, the shaded images and the technique's diagnostic maps
     of one frame, as a run stores them."""
     return {"visibility": output.visibility.astype(np.float32), "covered": frame.arrays.covered,
@@ -164,7 +164,7 @@ def _warnings_into(row: dict):
         row["warnings"] = "; ".join(filter(None, [row.get("warnings"), *messages]))
 
 
-def _score(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
+def score_run(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     """The finished run's row (timing, counters, metrics) and arrays, from its last frame."""
     with _warnings_into(timed.row):
         return _score_row(timed, frame, reference)
@@ -173,7 +173,7 @@ def _score(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
 def _score_row(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     row, output = timed.row, timed.output
     row.update(_cost_columns(timed, frame))
-    truth = _Truth(0, reference, frame.compared_pixels(reference.covered))
+    truth = FrameTruth(0, reference, frame.compared_pixels(reference.covered))
     columns, images = _metric_columns(_clean(output.visibility), frame, truth)
     row.update(columns)
     row.update(output.extra)
@@ -193,7 +193,7 @@ NO_WORST = ("levels", "edge_floor")
 
 
 @dataclass
-class _Sequence:
+class SequenceState:
     """What a run on a moving scene keeps across frames: per-frame values, its previous V
     (for flicker) with that frame's depth and camera (for world flicker), frame 0's arrays,
     the worst frame so far and the strip around it. Memory stays a few images per run however
@@ -218,9 +218,9 @@ class _Sequence:
         self.series.setdefault(name, []).append(value)
 
 
-def _observe(timed, frame, truth: _Truth, previous: _Truth | None) -> None:
-    """Score frame ``truth.index`` of a run on a moving scene into its :class:`_Sequence`."""
-    sequence = timed.sequence = timed.sequence or _Sequence()
+def observe_frame(timed, frame, truth: FrameTruth, previous: FrameTruth | None) -> None:
+    """Score frame ``truth.index`` of a run on a moving scene into its :class:`SequenceState`."""
+    sequence = timed.sequence = timed.sequence or SequenceState()
     output, t, covered = timed.output, truth.index, frame.arrays.covered
     v = _clean(output.visibility)
     ref_v = truth.reference.visibility
@@ -258,8 +258,8 @@ def _observe(timed, frame, truth: _Truth, previous: _Truth | None) -> None:
     sequence.previous = v
 
 
-def _observe_world_flicker(sequence: _Sequence, v: np.ndarray, frame, truth: _Truth,
-                           previous: _Truth | None) -> None:
+def _observe_world_flicker(sequence: SequenceState, v: np.ndarray, frame, truth: FrameTruth,
+                           previous: FrameTruth | None) -> None:
     """Frame ``truth.index``'s world flicker and changed % (NaN at frame 0) into the sequence's
     series, then this frame's depth and camera kept for the next. A moving object's pixels are
     not left out (the frame does not say which moved): :func:`harness.metrics.world_points`'
@@ -279,7 +279,7 @@ def _observe_world_flicker(sequence: _Sequence, v: np.ndarray, frame, truth: _Tr
     sequence.previous_view_proj = frame.camera.view_proj
 
 
-def _sequence_score(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
+def sequence_score(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
     """A moving run's row and arrays: metrics as the mean over frames and their worst frame,
     flicker, pop frames; costs from the last frame, timing over the sequence's frames."""
     with _warnings_into(timed.row):

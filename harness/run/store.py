@@ -14,7 +14,7 @@ from .. import results
 from .plan import RunSpec
 
 
-def _now() -> str:
+def utc_now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
 
 
@@ -25,7 +25,7 @@ def reference_array_path(scene: str, width: int, height: int, samples: int, seed
 
 
 @contextmanager
-def _exclusive(out_dir: Path):
+def exclusive(out_dir: Path):
     """Hold DIR's lock: two sweeps appending to one results.csv would lose each other's rows.
     The kernel drops the lock when the holder dies, so a killed run never leaves DIR locked."""
     import fcntl
@@ -60,5 +60,5 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
         array = ref_name.with_name(f"{spec.technique}-{spec.run_id}.npz")
         results.save_arrays(results.inside(out_dir, array), **arrays)
         row["array"] = str(array)
-    row["finished_at"] = _now()
+    row["finished_at"] = utc_now()
     results.record_row(out_dir, row)

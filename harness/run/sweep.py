@@ -13,7 +13,7 @@ from .manifest import MANIFEST_FILE, SPACE_RESERVE, SPACE_RESERVE_BYTES, read_ma
 from .measure import run_group
 from .plan import Plan, RunSpec
 from .score import failed_scene_row
-from .store import _exclusive, _now, record_run
+from .store import exclusive, record_run, utc_now
 
 PROGRESS_FORMAT = "{desc} | {n_fmt}/{total_fmt} runs done{postfix} | {elapsed} elapsed"
 
@@ -110,7 +110,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     renderer = renderer or render_serial
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out_dir):
+    with exclusive(out_dir):
         read_manifest(out_dir)  # foreign files stop the run before anything changes
         results.read_rows(out_dir)
         results.remove_temporaries(out_dir, (results.RESULTS_FILE, MANIFEST_FILE, SPACE_RESERVE))
@@ -122,7 +122,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
 
         context = get_context(platform_name)
         # the id tells this invocation's entry from others started in the same second
-        session = {"id": os.urandom(4).hex(), "started": _now(), "finished": None,
+        session = {"id": os.urandom(4).hex(), "started": utc_now(), "finished": None,
                    "status": "running", "runs_pending": len(pending), "runs_rendered": 0}
         results.replace_atomically(out_dir / SPACE_RESERVE,
                                    lambda f: f.write(bytes(SPACE_RESERVE_BYTES)))
@@ -155,7 +155,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
             raise
         finally:
             bar.close()
-            session["finished"] = _now()
+            session["finished"] = utc_now()
             write_manifest(out_dir, plan, context, session)
             (out_dir / SPACE_RESERVE).unlink(missing_ok=True)
     return 1 if failed else 0

@@ -1,0 +1,5 @@
+"""Code shared by the map-based techniques, not a technique: the light depth map (directional,
+spot, cube) and the passes that shade from it (``light_maps.py``), the depth lookup and bias
+rule every map shares (``shadow_map.glsl``), cube-face selection and the PCF sample loop
+(``pcf_samples.glsl``). Start at ``light_maps.MapShading``.
+"""

@@ -1,0 +1,71 @@
+"""Williams' shadow map (1978)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+
+from techniques.common.light_maps import MapShading
+
+SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
+
+
+class ShadowMap(Technique):
+    """One depth map from the light, one depth comparison per shaded pixel.
+
+    Orthographic map fitted to the scene bounds for a directional light, perspective over the
+    cone for a spot light, and for a point light a cube: six 90-degree perspective faces of
+    ``res`` x ``res`` texels, each point tested in the face its direction falls in (one timed
+    pass per face; ``mem_bytes`` counts all six). Map depths are linear light-space distances
+    (along the face's axis, for a cube), so ``bias`` is in scene units. The comparison reads
+    the centre of the point's texel, up to half a texel away from the point in each axis; the
+    bias is ``bias`` plus ``slope_bias`` times the receiver plane's depth slope per texel
+    times that distance (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and
+    Schueler 2006), the rule every map technique here shares.
+
+    =================  ================================================  =======  ===========
+    Parameter          Meaning                                           Default  Range
+    =================  ================================================  =======  ===========
+    ``res``            map (a cube face's) width and height, texels      1024     16 .. 8192
+    ``bias``           constant depth bias, scene units                  0.02     >= 0
+    ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
+                       distance to the texel read, texels
+    ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
+                       before the read: this many x the texel's world
+                       size there x the sine of the light's angle
+    =================  ================================================  =======  ===========
+    """
+
+    name = "sm"
+    summary = "shadow map: one depth comparison per pixel"
+    paper = "Williams 1978, Casting curved shadows on curved surfaces"
+    # quality knob: the map size (the one way Williams' map buys accuracy with time), in
+    # factor-4 steps that keep make bench within its 10 minutes
+    quality_knobs = {"res": (256, 1024, 4096)}
+    # the oldest and simplest map: the others' cost is read as a multiple of its
+    baseline = True
+    declines_lights = {}  # a point light gets a cube map: six faces
+
+    class Params(TechniqueParams):
+        res: int = Field(1024, ge=16, le=8192)
+        bias: float = Field(0.02, ge=0)
+        slope_bias: float = Field(1.0, ge=0)
+        normal_offset: float = Field(0.0, ge=0)
+
+    def prepare(self, frame: Frame) -> None:
+        self.passes = MapShading(frame, self.params.res, SHADING)
+
+    def update(self, frame: Frame) -> None:
+        self.passes.update(frame)
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        p = self.params
+        self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
+                            nonfinite=self.passes.map.nonfinite)
+
+    def release(self) -> None:
+        self.passes.release()

@@ -1,0 +1,283 @@
+"""Helpers shared by test modules (test modules never import each other): a valid small
+scene, the command line run in-process or as a subprocess, small real runs and results
+folders, moving scenes, and one-frame renders."""
+
+from __future__ import annotations
+
+import copy
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from harness import cli, config, registry, results
+from harness.cli import main as shadowbench
+from harness.scene import build_scene
+from harness.technique import Frame, reset_gl_state
+
+GOOD = {
+    "resolution": [32, 32],
+    "camera": {"position": [0, -6, 4], "target": [0, 0, 0], "up": [0, 0, 1], "yfov": 60,
+               "near": 0.1, "far": 100},
+    "light": {"type": "directional", "direction": [-0.3, 0.2, -1]},
+    "effects": ["shadow"],
+    "objects": [{"shape": "plane", "size": [10, 10]},
+                {"shape": "box", "size": [1, 1, 1], "translate": [0, 0, 1.5]}],
+}
+
+
+ROOT = Path(__file__).resolve().parent.parent  # the repository
+DATA = Path(__file__).resolve().parent / "data"  # the tests' own files
+SCENE_FILE = ROOT / "scenes.yaml"  # the shipped scenes
+
+
+PY = sys.executable
+
+
+HOSTILE_SCENE = "x\" onerror=\"document.title='PWNED'\""
+
+
+HOSTILE_TECHNIQUE = "<img src=x onerror=alert(1)>"
+
+SMALL = [[64, 64], [96, 96]]
+
+# Two scenes: one shadow-only (directional light) and one shaded (spot light, so flip exists).
+SCENES = ["box_plane", "sphere_plane"]
+
+SCALE_SIZES = (1e3, 1e4, 1e5, 1e6)
+
+# sm and sv times at equal error per size: sv / sm = 0.25, 0.5, 2, 4 (crossing at 10^4.5)
+SCALE_TIMES = {"sm": (1, 2, 4, 8), "sv": (0.25, 1, 8, 32)}
+
+def view_direction(scene_config):
+    cam = scene_config.camera
+    d = np.subtract(cam.target, cam.position)
+    return d / np.linalg.norm(d)
+
+
+def scene_with(**changes) -> dict:
+    """GOOD with ``a__b__0=value`` changes (keys joined by double underscores)."""
+    scene = copy.deepcopy(GOOD)
+    for path, value in changes.items():
+        *parents, last = [int(k) if k.isdigit() else k for k in path.split("__")]
+        node = scene
+        for key in parents:
+            node = node[key]
+        node[last] = value
+    return scene
+
+
+def write_scenes(folder: Path, scenes: dict) -> Path:
+    path = folder / "scenes.yaml"
+    path.write_text(yaml.safe_dump({"scenes": scenes}, sort_keys=False))
+    return path
+
+
+def files_under(folder: Path) -> set[Path]:
+    return {p for p in folder.rglob("*") if p.is_file()}
+
+
+def run_cli(args, capsys) -> tuple[int, list[str]]:
+    code = cli.main([str(a) for a in args])
+    return code, capsys.readouterr().err.strip().splitlines()
+
+
+def sweep(scene_file, out, *more):
+    return ["run", "--scene-file", scene_file, "--techniques", "sm", "--out", out, "--quiet",
+            *more]
+
+
+def assert_one_line(code, err, expected_code, *needles):
+    assert code == expected_code, err
+    assert len(err) == 1, err
+    assert "Traceback" not in err[0]
+    for needle in needles:
+        assert needle in err[0], err
+
+
+def subprocess_env(**extra) -> dict:
+    return {**os.environ, "PYTHONPATH": str(ROOT), **extra}
+
+
+def can_mount_tmpfs() -> bool:
+    try:
+        return subprocess.run(["unshare", "-rm", "sh", "-c", "mount -t tmpfs none /mnt"],
+                              capture_output=True, timeout=30).returncode == 0
+    except (OSError, subprocess.SubprocessError):
+        return False
+
+
+needs_tmpfs = pytest.mark.skipif(not can_mount_tmpfs(), reason="no mount namespace here "
+                                 "(unshare -rm) for a small or read-only file system")
+
+
+def small_run(tmp_path, *techniques, frames=1):
+    scene_file = write_scenes(tmp_path, {"s": GOOD})
+    experiment = tmp_path / "e.yaml"
+    experiment.write_text(yaml.safe_dump({
+        "techniques": {t: None for t in techniques or ("sm",)}, "frames": frames, "warmup": 0,
+        "reference": {"samples": 1}}))
+    args = ["run", str(experiment), "--scene-file", str(scene_file), "--out",
+            str(tmp_path / "out"), "--quiet"]
+    return args
+
+
+def result_rows(out):
+    """The rows of ``out``/results.csv as dicts of strings, in file order."""
+    with (Path(out) / "results.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def rows_by_run_id(out):
+    return {r["run_id"]: r for r in result_rows(out)}
+
+
+def cli_subprocess(args, timeout=60) -> tuple[int, list[str]]:
+    proc = subprocess.run([sys.executable, "-m", "harness.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT,
+                          env=subprocess_env())
+    return proc.returncode, proc.stderr.strip().splitlines()
+
+
+def moving(shipped_scenes, name, size, **motion_keys):
+    """A shipped scene at ``size`` (width, height) with ``motion``; without keys, still."""
+    scene = shipped_scenes[name].model_dump(mode="json")
+    scene["resolution"] = list(size)
+    if motion_keys:
+        scene["motion"] = motion_keys
+    return build_scene(name, config.Scene(**scene))
+
+
+def render_visibility(technique, frame):
+    frame.meter.new_frame(True)
+    try:
+        return technique.render(frame).visibility
+    finally:
+        reset_gl_state()
+
+
+@contextmanager
+def rendered(scene, **params):
+    """The silhouette technique run once on ``scene`` (one cost: dynamic frame, its update and
+    render measured), kept alive for inspection."""
+    from harness.technique import reset_gl_state
+    from techniques.silhouette.silhouette import SilhouetteMap
+
+    frame = Frame(scene)
+    technique = SilhouetteMap(SilhouetteMap.Params(**params))
+    try:
+        technique.prepare(frame)
+        frame.meter.new_frame(measuring=True)
+        technique.update(frame)
+        output = technique.render(frame)
+        yield frame, technique, output
+    finally:
+        technique.release()
+        frame.release()
+        reset_gl_state()
+
+
+def light_at(scene_config, theta_deg, *, behind=True, beta_deg=30.0):
+    """A light at ``theta_deg`` to the view direction, shining down, ``beta_deg`` off the
+    vertical plane; ``behind``: it travels with the view (from behind the viewer)."""
+    d = view_direction(scene_config)
+    down = np.array([0.0, 0.0, -1.0]) - (-d[2]) * d
+    down /= np.linalg.norm(down)
+    side = np.cross(d, down)
+    t, b = math.radians(theta_deg), math.radians(beta_deg)
+    return ((1 if behind else -1) * math.cos(t) * d
+            + math.sin(t) * (math.cos(b) * down + math.sin(b) * side))
+
+
+def variant(shipped_scenes, name, width, **update):
+    base = shipped_scenes[name]
+    if "direction" in update:
+        update["light"] = config.DirectionalLight(type="directional",
+                                                  direction=list(update.pop("direction")))
+    return build_scene(name, base.model_copy(update=update)).with_resolution(width, width)
+
+
+def make_run_dir(out: Path) -> Path:
+    """A small real run directory: an sm and pcf parameter grid, then every registered technique
+    at its defaults, on two scenes at two resolutions, plus one failed row of a technique this
+    install does not know (as results copied from elsewhere would have)."""
+    common = {"scenes": SCENES, "resolutions": SMALL, "frames": 1, "warmup": 0,
+              "reference": {"samples": 4}}
+    grid = {**common, "techniques": {"sm": {"product": {"res": [256, 1024]}},
+                                     "pcf": {"product": {"k": [4, 16]}}}}
+    every = {**common, "techniques": "all"}
+    for name, experiment in (("grid", grid), ("every", every)):
+        path = out.parent / f"{out.name}-{name}.yaml"
+        path.write_text(json.dumps(experiment))
+        code = shadowbench(["run", str(path), "--scene-file", str(ROOT / "scenes.yaml"),
+                            "--out", str(out), "--quiet"])
+        assert code in (0, 1)
+    rows = results.read_rows(out)
+    rows.append({**rows[0], "run_id": "0" * 16, "technique": "broken_example",
+                 "params": json.dumps({"res": 64}), "status": "error",
+                 "error": "RuntimeError: shader failed to link", "time_ms": "", "mae": "",
+                 "edge_mae": "", "wrong_pct": "", "array": ""})
+    results.write_rows(out, rows)
+    return out
+
+
+def hostile_folder(folder: Path, make_results) -> Path:
+    """A scene named to break out of an attribute, a failed run whose error is markup, and a
+    parameter value that is a script."""
+    make_results(folder, [{"params": {"res": 512}},
+                          {"params": {"res": 1024}, "shift": 1},
+                          {"params": {"res": 2048}, "status": "error",
+                           "error": "<img src=x onerror=\"document.title='PWNED2'\">"},
+                          {"params": {"res": 4096, "bias": "</script><script>alert(1)</script>"}}],
+                 scene=HOSTILE_SCENE)
+    return folder
+
+
+def scale_folder(folder: Path, make_results) -> Path:
+    """A results folder written by hand: family arch at 10^3..10^6 triangles with sm and sv at
+    SCALE_TIMES (edge_mae 0.05, edge_floor 0.04: within 1.5 x floor) and sv's volume pass
+    drawing 10 x triangles fragments; two ordinary scenes, box (2,500 triangles) and old (no
+    count, run before it was recorded)."""
+
+    runs = []
+    for i, triangles in enumerate(SCALE_SIZES):
+        for technique, times in SCALE_TIMES.items():
+            passes = [{"name": "volumes", "ms": times[i] / 2, "fragments": 10 * triangles},
+                      {"name": "visibility", "ms": times[i] / 2, "fragments": 1000}]
+            runs.append({"scene": f"arch@{triangles:g}", "family": "arch",
+                         "triangles": int(triangles), "technique": technique,
+                         "code_version": registry.get(technique).code_version(),
+                         "time_ms": times[i], "edge_mae": 0.05, "edge_floor": 0.04,
+                         "frags_shadow": 10 * triangles + 1000, "passes": json.dumps(passes)})
+    for scene, triangles in (("box", 2500), ("old", None)):
+        runs += [{"scene": scene, "triangles": triangles, "time_ms": 1.0, "edge_mae": 0.05,
+                  "edge_floor": 0.04}]
+    make_results(folder, runs)
+    rows = results.read_rows(folder)
+    sv_defaults = json.dumps(registry.get("sv").Params().model_dump(mode="json"), sort_keys=True)
+    for row in rows:  # make_results writes sm's parameters on every row
+        if row["technique"] == "sv":
+            row["params"] = sv_defaults
+    results.write_rows(folder, rows)
+    return folder
+
+
+def one_frame_of(technique, frame):
+    """A callable rendering one unmeasured frame of a prepared technique, to the GPU's end."""
+    from OpenGL import GL  # after gl_context picked the platform
+
+    def one_frame():
+        frame.meter.new_frame(measuring=False)
+        output = technique.render(frame)
+        GL.glFinish()  # the frame is done when the GPU is, not when the calls return
+        return output
+
+    return one_frame

@@ -1,0 +1,207 @@
+"""Cascaded shadow maps (techniques/csm/csm.py): the split scheme, the cascades' fit, their
+stabilisation, csm with one split against sm, and bad parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from harness import cli, registry
+from harness.technique import Frame, reset_gl_state
+from harness.transforms import camera_matrices
+from techniques.common.light_maps import MapShading
+from techniques.sm.sm import SHADING as SM_SHADING
+from techniques.csm.csm import CascadedShadowMap, cascade_of, slice_corners, split_depths
+
+
+def test_split_depths_follow_the_practical_split_scheme():
+    """Zhang et al. 2006's C_i for n = 1, f = 800, N = 4, worked by hand: logarithmic
+    800^(i/4) = 1, 5.3183, 28.284, 150.424, 800; uniform 1, 200.75, 400.5, 600.25, 800;
+    lambda 0.5 their mean. Catches the two weights swapped (lambda on the uniform split) or an
+    exponent of i / (N + 1)."""
+    log = [1.0, 5.318296, 28.284271, 150.424124, 800.0]
+    uniform = [1.0, 200.75, 400.5, 600.25, 800.0]
+    np.testing.assert_allclose(split_depths(1.0, 800.0, 4, 1.0), log, rtol=1e-6)
+    np.testing.assert_allclose(split_depths(1.0, 800.0, 4, 0.0), uniform, rtol=1e-12)
+    np.testing.assert_allclose(split_depths(1.0, 800.0, 4, 0.5),
+                               (np.array(log) + uniform) / 2, rtol=1e-6)
+    np.testing.assert_allclose(split_depths(0.1, 100.0, 1, 0.3), [0.1, 100.0])
+
+
+def test_cascade_of_takes_the_first_slice_that_reaches_the_depth():
+    """A depth exactly on a split belongs to the nearer slice, as the shader's ``<=`` says;
+    beyond the last split, the last cascade. Catches side="right" (the farther slice)."""
+    ends = np.array([2.0, 5.0, 9.0])
+    np.testing.assert_array_equal(cascade_of(np.array([0.5, 2.0, 2.1, 5.0, 9.0, 50.0]), ends),
+                                  [0, 0, 1, 1, 2, 2])
+
+
+def run_csm(scene, frame=None, camera=None, **params):
+    """(V, the technique after render) of csm on ``scene``; ``camera`` (CameraMatrices) fits
+    the cascades to that camera while shading the frame's own G-buffer."""
+    own_frame = frame is None
+    frame = frame or Frame(scene)
+    technique = CascadedShadowMap(CascadedShadowMap.Params(**params))
+    try:
+        technique.prepare(frame)
+        if camera is not None:
+            frame.camera = camera
+        technique.update(frame)
+        output = technique.render(frame)
+    finally:
+        technique.release()
+        if own_frame:
+            frame.release()
+        reset_gl_state()
+    return output, technique
+
+
+def test_one_split_gives_sm_on_the_same_frustum(gl_context, scene_at):
+    """csm with one cascade is Williams' map fitted to the whole view frustum: V equals sm's
+    shading pass run on that frustum, bit for bit (the same shadow_map.glsl arithmetic on the
+    same uniforms; csm copies them per pixel into globals). Catches a cascade's map lookup or
+    bias in other texels than its own map's (e.g. cascade_res off by a factor)."""
+    scene = scene_at("castle", 96, 64)
+    frame = Frame(scene)
+    try:
+        output, technique = run_csm(scene, frame, splits=1, res=512)
+        passes = MapShading(frame, 512, SM_SHADING)
+        try:
+            passes.map.frustum = technique.cascades[0].frustum
+            passes.map.render(frame)  # what MapShading.update does after its own fit
+            passes.render(frame, 1.0, bias=0.02)
+            sm_v = frame.visibility_target.read()
+        finally:
+            passes.release()
+    finally:
+        frame.release()
+        reset_gl_state()
+    assert 0 < (sm_v < 0.5).sum() < sm_v.size  # some shadow, some light
+    np.testing.assert_array_equal(output.visibility, sm_v)
+
+
+@pytest.mark.parametrize("fit", ["frustum", "sdsm"])
+@pytest.mark.parametrize("stabilize", [False, True])
+def test_every_cascade_holds_the_receivers_of_its_slice(fit, stabilize, gl_context, scene_at):
+    """Each covered pixel lies inside the light frustum (x, y and depth) of the cascade it uses,
+    and under sdsm every slice is used from the nearest to the farthest visible depth. Catches a
+    cascade fitted to its slice's near face only, or sdsm splits that miss visible depths."""
+    scene = scene_at("terrain_long", 96, 96)
+    frame = Frame(scene)
+    try:
+        output, technique = run_csm(scene, frame, fit=fit, stabilize=stabilize, res=256)
+        a = frame.arrays
+        position = a.position[a.covered].astype(np.float64)
+        used = output.maps["cascade"][a.covered].astype(int)
+    finally:
+        frame.release()
+    assert set(used) == set(range(4))
+    for i, cascade in enumerate(technique.cascades):
+        points = np.hstack([position[used == i], np.ones(((used == i).sum(), 1))])
+        clip = points @ cascade.frustum.view_proj.T
+        assert np.abs(clip[:, :3]).max() <= 1.0, (i, np.abs(clip[:, :3]).max(axis=0))
+    if fit == "sdsm":
+        view = frame.camera.view
+        depth = -(position @ view[2, :3] + view[2, 3])
+        assert technique.splits[0] <= depth.min() and depth.max() <= technique.splits[-1]
+        assert technique.splits[-1] < 1.01 * depth.max()  # the visible range, not the far plane
+
+
+def moved(frame, offset):
+    """The frame's camera translated by ``offset`` (world units), position and target."""
+    camera = frame.scene.config.camera
+    shift = np.asarray(offset, np.float64)
+    return camera_matrices(camera.model_copy(update={
+        "position": tuple(np.asarray(camera.position) + shift),
+        "target": tuple(np.asarray(camera.target) + shift)}), frame.width, frame.height)
+
+
+def turned(frame, degrees):
+    """The frame's camera turned by ``degrees`` about its up axis through its position."""
+    from harness.motion import rotation
+    camera = frame.scene.config.camera
+    position = np.asarray(camera.position, np.float64)
+    aim = rotation(camera.up, degrees) @ (np.asarray(camera.target) - position)
+    return camera_matrices(camera.model_copy(update={"target": tuple(position + aim)}),
+                           frame.width, frame.height)
+
+
+@pytest.mark.parametrize("change", ["move", "turn"])
+def test_stabilised_cascades_keep_v_when_the_camera_changes_by_less_than_a_texel(
+        change, gl_context, scene_at):
+    """The cascades fitted to a camera moved (0.6 of cascade 0's texel sideways) or turned
+    (by as much at its sphere's centre), shading the same world points (the first camera's
+    G-buffer): stabilised, V is bit for bit the same wherever the point keeps its cascade
+    (flicker 0 there), although
+    some cascade's map moved by whole texels; unstabilised, V changes on some shadow edges.
+    Catches a snap to other than whole texels (e.g. no rounding of the centre) or a radius that
+    follows the camera."""
+    scene = scene_at("castle", 128, 96)
+    frame = Frame(scene)
+    try:
+        results = {}
+        for stabilize in (False, True):
+            base, before = run_csm(scene, frame, stabilize=stabilize, res=256)
+            texel = before.cascades[0].texel_world
+            right = frame.camera.view[0, :3]
+            # cascade 0's sphere centre moves by 0.6 of its texel either way
+            centre = slice_corners(frame.camera.view, frame.camera.proj,
+                                   *before.splits[:2]).mean(axis=0)
+            distance = np.linalg.norm(centre - frame.camera.position)
+            camera = moved(frame, 0.6 * texel * right) if change == "move" \
+                else turned(frame, np.degrees(0.6 * texel / distance))
+            after_output, after = run_csm(scene, frame, camera=camera, stabilize=stabilize,
+                                          res=256)
+            frame.camera = camera_matrices(frame.scene.config.camera, frame.width, frame.height)
+            same_cascade = base.maps["cascade"] == after_output.maps["cascade"]
+            changed = (base.visibility != after_output.visibility) & same_cascade
+            shifts = [np.abs(b.frustum.view[:2, 3] - a.frustum.view[:2, 3]).max() / b.texel_world
+                      for b, a in zip(before.cascades, after.cascades)]
+            results[stabilize] = int(changed.sum()), shifts
+    finally:
+        frame.release()
+    changed, shifts = results[True]
+    assert changed == 0
+    assert max(shifts) > 0.5  # some map moved, by whole texels
+    np.testing.assert_allclose(shifts, np.round(shifts), atol=1e-6)
+    assert results[False][0] > 0
+
+
+@pytest.mark.parametrize("key, value", [("splits", 0), ("splits", 5), ("lambda", -0.1),
+                                        ("lambda", 1.5)])
+def test_bad_parameters_exit_2_naming_the_file_and_key(key, value, tmp_path, capsys):
+    """splits outside 1..4 and lambda outside [0, 1] are bad input: exit 2, one line naming the
+    experiment file and csm.<key>, nothing written. Catches a missing bound on either."""
+    with pytest.raises(ValidationError, match=key):
+        registry.get("csm").Params(**{key: value})
+    experiment = tmp_path / "bad.yaml"
+    experiment.write_text(f"techniques:\n  csm: {{set: {{{key}: {value}}}}}\n")
+    out = tmp_path / "out"
+    assert cli.main(["run", str(experiment), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.yaml" in err[0] and f"csm.{key}" in err[0], err
+    assert not out.exists()
+
+
+def test_stabilised_cascades_do_not_flicker_at_fixed_world_points_in_a_turn(
+        shipped_scenes, gl_context):
+    """terrain_long at 96 x 96, 4 frames of experiments/motion.yaml's terrain_long_turn step
+    (0.085 degrees a frame, under a pixel's 0.6): scored by the harness's sequence scoring,
+    stabilised cascades keep V at every world point that stays in view (world_changed_pct 0
+    in every frame; world_flicker is then the reference's own change alone, measured 0.10 of
+    unstabilised's), where unstabilised ones shimmer (V changes at some world points).
+    Catches texel snapping removed or a sphere radius that follows the camera (stabilised
+    would change V)."""
+    from harness import config
+    from harness.run import evaluate
+    from harness.scene import build_scene
+
+    scene = shipped_scenes["terrain_long"].model_dump(mode="json")
+    scene.update(resolution=[96, 96], motion={"frames": 4, "camera_orbit": 3 * 4 / 47})
+    built = build_scene("terrain_long", config.Scene(**scene))
+    rows = {stabilize: evaluate(built, "csm", {"stabilize": stabilize}).row
+            for stabilize in (False, True)}
+    assert rows[True]["world_changed_pct_max"] == 0.0
+    assert rows[False]["world_changed_pct"] > 0.0
+    assert rows[True]["world_flicker"] < 0.2 * rows[False]["world_flicker"]
