@@ -1,7 +1,7 @@
 """ptsv: per-triangle shadow volumes tested against a hierarchy of the view samples (Sintorn et al.
-2011), in compute shaders. Start at ``technique.py`` (the passes), then ``hierarchy.py`` (the
+2011), in compute shaders. Start at ``ptsv.py`` (the passes), then ``hierarchy.py`` (the
 buffers and dispatches) and ``ptsv_volume.glsl`` (the plane tests every kernel shares)."""
 
-from .technique import PerTriangleShadowVolumes
+from .ptsv import PerTriangleShadowVolumes
 
 __all__ = ["PerTriangleShadowVolumes"]

@@ -32,6 +32,18 @@ PLANES_BYTES = 64  # four vec4 per volume
 BOX_BYTES = 32
 
 
+def closed_sides(triangles: np.ndarray, part_faces: list[int], closed: np.ndarray) -> np.ndarray:
+    """Per triangle (T, 3, 3): 0 in an open part; in a closed part 1 where the part's winding
+    turns its faces outward (positive signed volume), -1 where inward."""
+    tri = triangles.astype(np.float64)
+    det = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    starts = np.minimum(np.concatenate([[0], np.cumsum(part_faces)[:-1]]), max(len(det) - 1, 0))
+    volume = np.add.reduceat(det, starts) if len(det) else np.zeros(0)
+    volume = np.where(np.asarray(part_faces) > 0, volume, 0.0)
+    side = np.where(closed, np.sign(volume), 0).astype(np.int32)
+    return np.repeat(side, part_faces)
+
+
 def level_sizes(width: int, height: int, tile: int) -> list[tuple[int, int]]:
     """Samples per row and column, then nodes per row and column of each level up to the root
     (at least one node level)."""
@@ -83,7 +95,8 @@ def _rows(groups: int) -> tuple[int, int]:
 class SampleHierarchy:
     """Buffers and programs for one image size, tile and mask divisor."""
 
-    def __init__(self, width: int, height: int, divisor: int, tile: int, triangles: int):
+    def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray):
+        triangles = len(closed_side)
         self.divisor, self.tile, self.triangles = divisor, tile, triangles
         self.sizes = level_sizes(-(-width // divisor), -(-height // divisor), tile)
         self.levels = len(self.sizes) - 1
@@ -110,6 +123,11 @@ class SampleHierarchy:
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
         self.dispatch = _storage(12)
+        self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
+        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
+                           np.ascontiguousarray(closed_side, np.int32))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
         self.capacity = self.volume_capacity = 0
         self.queues = self.planes = None
         self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)), max(MIN_CAPACITY, triangles // 4))
@@ -120,7 +138,7 @@ class SampleHierarchy:
         """What the hierarchy, marks, volumes and work queues hold."""
         return (self.nodes * BOX_BYTES + (self.samples + self.nodes) * 4
                 + 2 * self.capacity * ITEM_BYTES + self.volume_capacity * PLANES_BYTES
-                + (COUNT_LEVELS + self.levels + 1) * 4 + 12)
+                + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + 4 * self.triangles)
 
     def _grow(self, capacity: int, volume_capacity: int) -> None:
         if capacity > self.capacity:
@@ -173,6 +191,7 @@ class SampleHierarchy:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 0, vertices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
         shared = dict(tie=float(tie), capacity=self.capacity,
                       volume_capacity=self.volume_capacity, sample_count=self.samples)
         setup = self.setup_programs[count].use()
@@ -212,8 +231,8 @@ class SampleHierarchy:
         return out
 
     def release(self) -> None:
-        GL.glDeleteBuffers(6, [self.boxes, self.marks, self.counters, self.dispatch,
-                               self.queues, self.planes])
+        GL.glDeleteBuffers(7, [self.boxes, self.marks, self.counters, self.dispatch,
+                               self.queues, self.planes, self.closed_side])
         for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),
                         *self.traverse_programs.values()):
             program.release()

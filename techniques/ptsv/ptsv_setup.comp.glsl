@@ -1,13 +1,18 @@
 // One invocation per scene triangle: its shadow volume's four planes from the frame's light,
-// then the root test. Edge-on triangles cast no volume (as sv's per-triangle volumes); a volume
+// then the root test. Edge-on triangles cast no volume (as sv's per-triangle volumes), nor do a
+// closed part's triangles turned from the light; every other triangle casts, turned toward the
+// light (an open part's back-facing triangle shadows as much as a front-facing one). A volume
 // the root box lies outside of is culled; one that holds the root box marks the root; any
-// other is queued for the level below the root. Every triangle casts, turned toward the light
-// (an open part's back-facing triangle shadows as much as a front-facing one).
+// other is queued for the level below the root.
 #include "ptsv_volume.glsl"
 
 layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Vertices { float vertex_data[]; };  // xyz per vertex
 layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 3 per triangle
+// per triangle: 0 in an open part; in a closed part 1 where its winding turns it outward, -1
+// inward. A closed part's light-facing triangles shadow all that it does (a segment from a
+// point outside it, or on it, to the light leaves it through one), so the others are culled.
+layout(std430, binding = 8) readonly buffer Closed { int closed_side[]; };
 uniform vec4 light;  // (position, 1) for a spot or point light, (-direction, 0) directional
 uniform uint triangle_count;
 uniform uint root;  // the root's node number
@@ -33,7 +38,8 @@ void main() {
     vec3 n = cross(p[1] - p[0], p[2] - p[0]);
     vec3 to_light = light.xyz - p[0] * light.w;
     float facing = dot(n, to_light);
-    if (abs(facing) <= EDGE_ON * length(n) * length(to_light)) {
+    if (abs(facing) <= EDGE_ON * length(n) * length(to_light)
+        || float(closed_side[triangle]) * facing < 0.0) {
         TALLY(COUNT_CULLED);
         return;
     }

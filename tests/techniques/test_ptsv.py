@@ -16,13 +16,13 @@ Broken versions each test was run against once (and failed):
 
 import numpy as np
 import pytest
-from conftest import ROOT, SCENE_FILE
+from helpers import ROOT, SCENE_FILE
 
 from harness import config, metrics
 from harness.scene import load_scene
 from harness.technique import Frame, reset_gl_state
 from techniques.ptsv import PerTriangleShadowVolumes
-from techniques.sv import ShadowVolumes
+from techniques.sv.sv import ShadowVolumes
 
 RES = 96
 HARD_CASES = ROOT / "experiments" / "hard_cases" / "scenes.yaml"

@@ -11,7 +11,7 @@ from pydantic import Field, field_validator
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from .hierarchy import SampleHierarchy
+from .hierarchy import SampleHierarchy, closed_sides
 
 # mask_res -> image pixels along each axis per sample (as sv's)
 MASK_DIVISOR = {"full": 1, "half": 2, "quarter": 4}
@@ -83,8 +83,10 @@ class PerTriangleShadowVolumes(Technique):
     def prepare(self, frame: Frame) -> None:
         p = self.params
         self.divisor = MASK_DIVISOR[p.mask_res]
-        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile,
-                                         frame.geometry.index_count // 3)
+        scene = frame.scene
+        sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
+                             scene.edges.closed)
+        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "ptsv_visibility.frag.glsl", TILE=p.tile)
         self.counted_for = None
