@@ -157,11 +157,13 @@ class SampleHierarchy:
                                 (5, self.queues), (6, self.counters)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
 
-    def build(self, position: Texture) -> None:
-        """Each level's node boxes from the G-buffer's positions, bottom up."""
+    def build(self, position: Texture, origin: np.ndarray) -> None:
+        """Each level's node boxes from the G-buffer's positions (relative to ``origin``),
+        bottom up."""
         self._bind()
         program = self.box_program.use()
-        program.set(gbuffer_position=position.bind(0), divisor=self.divisor)
+        program.set(gbuffer_position=position.bind(0), divisor=self.divisor,
+                    origin=np.asarray(origin, np.float32))
         for level in range(1, self.levels + 1):
             (w, h), (cw, ch) = self.sizes[level], self.sizes[level - 1]
             _set(program, level=level, node_size=(w, h), child_size=(cw, ch),
@@ -171,12 +173,14 @@ class SampleHierarchy:
             _barrier()
 
     def traverse(self, position: Texture, vertices: int, indices: int, light: np.ndarray,
-                 tie: float, count: bool = False) -> np.ndarray:
+                 origin: np.ndarray, tie: float, count: bool = False) -> np.ndarray:
         """Mark the samples and nodes inside the volumes of the scene's triangles (vertex and
-        index buffers of the scene mesh) for ``light`` (homogeneous). Runs again, with room,
+        index buffers of the scene mesh) for ``light`` (homogeneous), positions taken relative
+        to ``origin`` (float32, near the scene). Runs again, with room,
         until no queue overflowed. Returns the counters (read back)."""
         while True:
-            counters = self._traverse_once(position, vertices, indices, light, tie, count)
+            counters = self._traverse_once(position, vertices, indices, light, origin, tie,
+                                           count)
             needed = int(counters[COUNT_LEVELS:].max(initial=0))
             volumes = int(counters[0])
             if needed <= self.capacity and volumes <= self.volume_capacity:
@@ -184,7 +188,8 @@ class SampleHierarchy:
             self.regrowths += 1
             self._grow(1 << max(needed - 1, 1).bit_length(), 1 << max(volumes - 1, 1).bit_length())
 
-    def _traverse_once(self, position, vertices, indices, light, tie, count) -> np.ndarray:
+    def _traverse_once(self, position, vertices, indices, light, origin, tie,
+                       count) -> np.ndarray:
         _zero(self.marks)
         _zero(self.counters)
         self._bind()
@@ -192,10 +197,10 @@ class SampleHierarchy:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
-        shared = dict(tie=float(tie), capacity=self.capacity,
+        shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
                       volume_capacity=self.volume_capacity, sample_count=self.samples)
         setup = self.setup_programs[count].use()
-        _set(setup, light=np.asarray(light, np.float32), triangle_count=self.triangles,
+        _set(setup, light_vector=np.asarray(light, np.float32), triangle_count=self.triangles,
              root=self.root, root_level=self.levels, **shared)
         GL.glDispatchCompute(*_rows(-(-self.triangles // 64)), 1)
         _barrier()

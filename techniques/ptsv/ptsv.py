@@ -97,6 +97,11 @@ class PerTriangleShadowVolumes(Technique):
         bounds = np.abs(frame.scene.bounds).max()
         return TIE * float(max(bounds, np.abs(frame.camera.position).max(), 1e-30))
 
+    @staticmethod
+    def _origin(frame: Frame) -> np.ndarray:
+        """The centre of the scene's bounds, in float32: positions are taken relative to it."""
+        return frame.scene.bounds.mean(axis=0).astype(np.float32)
+
     def _light(self, frame: Frame) -> np.ndarray:
         light = frame.scene.light
         return (np.append(-light.direction, 0.0) if light.type == "directional"
@@ -105,12 +110,13 @@ class PerTriangleShadowVolumes(Technique):
     def _traverse(self, frame: Frame, count: bool = False) -> np.ndarray:
         mesh = frame.geometry
         return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo, mesh.ebo,
-                                       self._light(frame), self._tie(frame), count)
+                                       self._light(frame), self._origin(frame), self._tie(frame),
+                                       count)
 
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy
         with frame.measure("hierarchy"):
-            h.build(frame.gbuffer.position_texture)
+            h.build(frame.gbuffer.position_texture, self._origin(frame))
         with frame.measure("volumes"):
             self._traverse(frame)
         with frame.measure("visibility"):

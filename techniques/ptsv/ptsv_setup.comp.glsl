@@ -13,21 +13,24 @@ layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 
 // inward. A closed part's light-facing triangles shadow all that it does (a segment from a
 // point outside it, or on it, to the light leaves it through one), so the others are culled.
 layout(std430, binding = 8) readonly buffer Closed { int closed_side[]; };
-uniform vec4 light;  // (position, 1) for a spot or point light, (-direction, 0) directional
+// (position, 1) for a spot or point light, (-direction, 0) directional
+uniform vec4 light_vector;
 uniform uint triangle_count;
 uniform uint root;  // the root's node number
 uniform uint root_level;
 
 vec3 corner(uint triangle, uint k) {
     uint i = 3u * index_data[3u * triangle + k];
-    return vec3(vertex_data[i], vertex_data[i + 1u], vertex_data[i + 2u]);
+    return vec3(vertex_data[i], vertex_data[i + 1u], vertex_data[i + 2u]) - origin;
 }
 
-// The plane through p with normal along n, turned so that `inner` lies on its negative side.
-vec4 plane_through(vec3 n, vec3 p, vec3 inner) {
-    n = normalize(n);
-    if (dot(n, inner - p) > 0.0) n = -n;
-    return vec4(n, -dot(n, p));
+// The plane through the edge from p to q (p the end of smaller vertex index, so the two
+// triangles sharing the edge compute the same plane) and the light, turned so that `inner`
+// lies on its negative side (an exact negation).
+vec4 edge_plane(vec3 p, vec3 q, vec4 light, vec3 inner) {
+    vec3 n = normalize(cross(q - p, light.xyz - p * light.w));
+    vec4 plane = vec4(n, -dot(n, p));
+    return dot(n, inner - p) > 0.0 ? -plane : plane;
 }
 
 void main() {
@@ -36,6 +39,7 @@ void main() {
     if (triangle >= triangle_count) return;
     vec3 p[3] = vec3[3](corner(triangle, 0u), corner(triangle, 1u), corner(triangle, 2u));
     vec3 n = cross(p[1] - p[0], p[2] - p[0]);
+    vec4 light = vec4(light_vector.xyz - origin * light_vector.w, light_vector.w);
     vec3 to_light = light.xyz - p[0] * light.w;
     float facing = dot(n, to_light);
     if (abs(facing) <= EDGE_ON * length(n) * length(to_light)
@@ -48,9 +52,9 @@ void main() {
     vec3 toward = normalize(facing > 0.0 ? n : -n);
     volume[0] = vec4(toward, -dot(toward, p[0]));
     for (int k = 0; k < 3; ++k) {
-        vec3 a = p[k], b = p[(k + 1) % 3];
-        vec3 edge_normal = cross(b - a, light.xyz - a * light.w);
-        volume[k + 1] = plane_through(edge_normal, a, p[(k + 2) % 3]);
+        int a = k, b = (k + 1) % 3;
+        bool ordered = index_data[3u * triangle + uint(a)] < index_data[3u * triangle + uint(b)];
+        volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
     }
     TALLY(COUNT_NODE_TESTS);
     vec3 lo, hi;

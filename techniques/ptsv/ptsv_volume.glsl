@@ -1,7 +1,9 @@
 // The buffers every ptsv kernel shares and the tests of a triangle's shadow volume (Sintorn et
 // al. 2011): the triangle's plane, turned so the light lies on its positive side, and the
 // three planes through its edges and the light, turned so the triangle lies on their negative
-// side. A point is inside the volume where it is behind the triangle's plane by more than
+// side. Positions are taken relative to `origin` (the scene's centre, a float32 value: the
+// subtraction is exact near it), so that planes keep their precision far from the world's
+// origin. A point is inside the volume where it is behind the triangle's plane by more than
 // `tie` (the receiver's own triangle is no caster) and on the negative side of all three edge
 // planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
 layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // 4 per queued triangle
@@ -20,6 +22,7 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 #define COUNT_SAMPLE_TESTS 5u  // sample-volume tests at the leaves
 #define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
 
+uniform vec3 origin;
 uniform float tie;  // how far behind its own plane a point must be to be shadowed
 uniform uint capacity;  // items per queue region
 uniform uint volume_capacity;  // rows of 4 planes in `planes`
@@ -31,26 +34,36 @@ uniform uint sample_count;  // marks before the nodes': node i's mark is sample_
 #define TALLY(what)
 #endif
 
-// -1: the box [lo, hi] lies outside the volume (wholly on the positive side of one plane);
-// 1: wholly inside (every corner inside every plane); 0: partly.
+// A point exactly on an edge plane is inside for one of the two triangles sharing the edge: as
+// if moved a little along +x (then +y, +z). Both compute that plane from the same ordered
+// ends (ptsv_setup.comp.glsl), so their distances are exact negatives and no ray slips between.
+bool inside_edge(vec4 plane, vec3 p) {
+    float d = dot(plane.xyz, p) + plane.w;
+    if (d != 0.0) return d < 0.0;
+    vec3 n = plane.xyz;
+    return n.x != 0.0 ? n.x < 0.0 : (n.y != 0.0 ? n.y < 0.0 : n.z < 0.0);
+}
+
+// -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
+// wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
+// edge plane counts as partly, so the samples there meet the tie-break above).
 int classify(vec4 volume[4], vec3 lo, vec3 hi) {
     bool inside = true;
     for (int k = 0; k < 4; ++k) {
         vec4 plane = volume[k];
-        float limit = k == 0 ? -tie : 0.0;
         vec3 a = plane.xyz * lo, b = plane.xyz * hi;
         vec3 near = min(a, b), far = max(a, b);
-        if (plane.w + near.x + near.y + near.z >= limit) return -1;
-        if (plane.w + far.x + far.y + far.z >= limit) inside = false;
+        float nearest = plane.w + near.x + near.y + near.z;
+        float furthest = plane.w + far.x + far.y + far.z;
+        if (k == 0 ? nearest >= -tie : nearest > 0.0) return -1;
+        if (k == 0 ? furthest >= -tie : furthest >= 0.0) inside = false;
     }
     return inside ? 1 : 0;
 }
 
 bool inside_volume(vec4 volume[4], vec3 p) {
-    return dot(volume[0].xyz, p) + volume[0].w < -tie
-        && dot(volume[1].xyz, p) + volume[1].w < 0.0
-        && dot(volume[2].xyz, p) + volume[2].w < 0.0
-        && dot(volume[3].xyz, p) + volume[3].w < 0.0;
+    return dot(volume[0].xyz, p) + volume[0].w < -tie && inside_edge(volume[1], p)
+        && inside_edge(volume[2], p) && inside_edge(volume[3], p);
 }
 
 vec4[4] volume_planes(uint volume) {

@@ -31,10 +31,11 @@ SCENES = [(SCENE_FILE, name) for name, scene in config.load_scenes(SCENE_FILE).i
 # Pixels where ptsv's V and sv's differ at 96x96, measured, by reason (see _differences): on a
 # surface the light does not reach, a tie, sv wrong, unexplained (always 0).
 DIFFERENCES = {
-    "sphere_plane": (2, 0, 0, 0), "crowd": (0, 0, 1, 0), "slant_edge": (20, 0, 0, 0),
+    "sphere_plane": (2, 0, 0, 0), "crowd": (0, 0, 1, 0), "slant_edge": (22, 0, 0, 0),
     "hard_dueling_frusta": (5747, 0, 0, 0),  # lit from below the ground: none of it compared
-    "hard_near_plane_crossing": (0, 21, 0, 0), "hard_far_from_origin": (0, 32, 2, 0),
-    "hard_texel_corners": (104, 0, 0, 0), "hard_degenerate_open_meshes": (17, 0, 0, 0),
+    # sv wrong: the occluder the near plane cuts; float32 depths 1e5 units from the origin
+    "hard_near_plane_crossing": (0, 0, 21, 0), "hard_far_from_origin": (0, 0, 34, 0),
+    "hard_texel_corners": (144, 0, 0, 0), "hard_degenerate_open_meshes": (17, 0, 0, 0),
     "hard_point_ring": (2, 0, 0, 0),
 }
 # One big triangle high over a ground plane, the camera between them looking down, the light
@@ -62,10 +63,11 @@ def _render(cls, frame: Frame, **params):
     return output
 
 
-def exact_shadow(points: np.ndarray, triangles: np.ndarray, light, slack: float):
+def exact_shadow(points: np.ndarray, triangles: np.ndarray, light, slack: float,
+                 nearest: float) -> np.ndarray:
     """An independent oracle in float64: whether the segment from each point to the light
-    crosses a triangle (Moller-Trumbore), each triangle's barycentrics and the point's distance
-    along the segment loosened by ``slack`` (> 0) or tightened (< 0)."""
+    crosses a triangle (Moller-Trumbore) further than ``nearest`` (scene units) from the point,
+    each triangle's barycentric bounds loosened by ``slack`` (> 0) or tightened (< 0)."""
     tri = triangles.astype(np.float64)
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     out = np.zeros(len(points), bool)
@@ -82,21 +84,25 @@ def exact_shadow(points: np.ndarray, triangles: np.ndarray, light, slack: float)
         t = f * np.einsum("ij,ij->i", e2, q)
         far = np.inf if light.type == "directional" else 1.0
         out[i] = (ok & (u > -slack) & (v > -slack) & (u + v < 1 + slack)
-                  & (t > -slack + 1e-6) & (t < far)).any()
+                  & (t * np.linalg.norm(d) > nearest) & (t < far)).any()
     return out
 
 
 def _differences(frame: Frame, ptsv_v: np.ndarray, sv_v: np.ndarray) -> tuple[int, ...]:
     """The covered pixels where V differ, by reason: (not reached by the light: edge-on or
     turned away, which DESIGN's compared pixels leave out; a tie: the exact oracle's answer
-    changes when its tests are loosened or tightened by 1e-4; sv wrong: ptsv's V is the
-    oracle's and sv's is not; unexplained)."""
+    changes when its barycentric bounds are loosened or tightened by 1e-4; sv wrong: ptsv's V
+    is the oracle's and sv's is not; unexplained). The oracle ignores a crossing within 2^-20
+    of the scene's largest coordinate of the point (float32 G-buffer positions lie that far
+    off their own triangle's plane)."""
     a = frame.arrays
     lit = metrics.receives_light(a.normal, a.position, frame.scene.light, frame.camera.position)
     differ = (ptsv_v != sv_v) & a.covered
     at = np.argwhere(differ & lit)
     tri, light = frame.scene.triangles, frame.scene.light
-    loose, tight = (exact_shadow(a.position[at[:, 0], at[:, 1]], tri, light, s)
+    nearest = 2.0 ** -20 * max(np.abs(frame.scene.bounds).max(),
+                               np.abs(frame.camera.position).max())
+    loose, tight = (exact_shadow(a.position[at[:, 0], at[:, 1]], tri, light, s, nearest)
                     for s in (1e-4, -1e-4))
     tie = loose != tight
     right = ~tie & ((ptsv_v[at[:, 0], at[:, 1]] < 0.5) == tight)
