@@ -6,6 +6,15 @@
 // the faces that increment the count come out before those that decrement it; faces leave
 // in primitive order, so volume by volume.
 #include "sv_extrude.glsl"
+#ifdef CULL
+// cull: cc (Lloyd et al. 2004), directional light: a volume with no visible receiver beyond its
+// triangle in the triangle's light-space footprint is culled; any other is clamped just beyond
+// the deepest receiver there and closed by a far cap (the sides become quads). receiver_margin:
+// light depth kept beyond that receiver.
+#include "sv_receivers.glsl"
+uniform bool cull_on;  // a directional light and a built grid
+uniform float receiver_margin;
+#endif
 
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 24) out;
@@ -30,11 +39,27 @@ void main() {
     vec3 p[3] = vec3[3](corner_position[0], corner_position[away ? 2 : 1],
                         corner_position[away ? 1 : 2]);
     vec4 near[3], far[3];
+    bool clamped = false;
+#ifdef CULL
+    float clamp_depth = 0.0;
+    if (cull_on) {
+        vec3 l[3];
+        for (int k = 0; k < 3; ++k) l[k] = light_basis * (model * vec4(p[k], 1.0)).xyz;
+        vec2 lo = min(min(l[0].xy, l[1].xy), l[2].xy), hi = max(max(l[0].xy, l[1].xy), l[2].xy);
+        float deepest = deepest_receiver(lo, hi);
+        if (deepest < min(min(l[0].z, l[1].z), l[2].z) - receiver_margin) return;  // culled
+        clamped = true;
+        clamp_depth = deepest + receiver_margin;
+        for (int k = 0; k < 3; ++k)  // -light.xyz: the light's unit direction in model space
+            far[k] = to_clip(vec4(p[k] - light.xyz * (clamp_depth - l[k].z), 1.0));
+    }
+#endif
     for (int k = 0; k < 3; ++k) {
         near[k] = to_clip(vec4(p[k], 1.0));
-        far[k] = to_clip(at_infinity(p[k]));
+        if (!clamped) far[k] = to_clip(at_infinity(p[k]));
     }
-    bool positional = light.w > 0.5;  // a directional light's far corners coincide
+    // a directional light's far corners coincide, unless clamped
+    bool positional = light.w > 0.5 || clamped;
     vec4 faces[8][3];
     int count = 0;
     for (int k = 0; k < 3; ++k) {
@@ -42,10 +67,8 @@ void main() {
         faces[count++] = vec4[3](near[b], near[a], far[a]);
         if (positional) faces[count++] = vec4[3](near[b], far[a], far[b]);
     }
-    if (caps) {
-        faces[count++] = near;
-        if (positional) faces[count++] = vec4[3](far[2], far[1], far[0]);
-    }
+    if (caps) faces[count++] = near;
+    if ((caps && positional) || clamped) faces[count++] = vec4[3](far[2], far[1], far[0]);
     for (int round = 0; round < (increments_first ? 2 : 1); ++round) {
         for (int i = 0; i < count; ++i) {
             bool increments = front_facing(faces[i][0], faces[i][1], faces[i][2])
