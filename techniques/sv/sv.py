@@ -96,11 +96,11 @@ class ShadowVolumes(Technique):
     timed pass, ``receivers``, on a light-space grid of the G-buffer's samples (each cell's
     deepest receiver along the light, and its max pyramid: ``sv_cull``); the geometry shader
     then culls every per-triangle volume with no receiver beyond its triangle in the cells its
-    footprint touches, and clamps the others just beyond the deepest receiver there, closed by a
-    far cap. Both steps are conservative: V is the same as with ``none``, only fill and time
-    change. It applies to a directional light's per-triangle volumes (open parts, or all with
-    ``volumes: polygon``); silhouette volumes, and every volume of a spot or point light, are
-    drawn as with ``none``.
+    footprint touches. The test is conservative: V is the same as with ``none``, only fill and
+    time change. Lloyd et al.'s clamping of the remaining volumes is left out: it moved V at
+    tie pixels (see ``sv_cull``). It applies to a directional light's per-triangle volumes
+    (open parts, or all with ``volumes: polygon``); silhouette volumes, and every volume of a
+    spot or point light, are drawn as with ``none``.
 
     Volume fragments are counted untimed, with the depth test off, whenever the light, the
     camera or an object moved (once on a still scene): they are the row's
@@ -120,7 +120,7 @@ class ShadowVolumes(Technique):
     ``volumes``      ``auto``, ``silhouette`` (one per closed mesh, even    auto
                      non-convex) or ``polygon`` (one per triangle)
     ``cull``         ``none`` or ``cc`` (Lloyd et al. 2004: per-triangle       none
-                     volumes culled and clamped to the visible receivers;
+                     volumes that reach no visible receiver culled;
                      directional light; not with nearclip)
     ===============  =====================================================  ==========  =====
     """

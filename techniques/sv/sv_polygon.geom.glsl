@@ -8,9 +8,9 @@
 #include "sv_extrude.glsl"
 #ifdef CULL
 // cull: cc (Lloyd et al. 2004), directional light: a volume with no visible receiver beyond its
-// triangle in the triangle's light-space footprint is culled; any other is clamped just beyond
-// the deepest receiver there and closed by a far cap (the sides become quads). receiver_margin:
-// light depth kept beyond that receiver.
+// triangle (by more than receiver_margin of light depth) in the cells of the triangle's
+// light-space footprint is culled. Its sides are not clamped: a finite far edge rasterises
+// otherwise than the edge to infinity, which moved V at tie pixels (sv_cull.py).
 #include "sv_receivers.glsl"
 uniform bool cull_on;  // a directional light and a built grid
 uniform float receiver_margin;
@@ -38,28 +38,20 @@ void main() {
     bool away = facing < 0.0;
     vec3 p[3] = vec3[3](corner_position[0], corner_position[away ? 2 : 1],
                         corner_position[away ? 1 : 2]);
-    vec4 near[3], far[3];
-    bool clamped = false;
 #ifdef CULL
-    float clamp_depth = 0.0;
     if (cull_on) {
         vec3 l[3];
         for (int k = 0; k < 3; ++k) l[k] = light_basis * (model * vec4(p[k], 1.0)).xyz;
         vec2 lo = min(min(l[0].xy, l[1].xy), l[2].xy), hi = max(max(l[0].xy, l[1].xy), l[2].xy);
-        float deepest = deepest_receiver(lo, hi);
-        if (deepest < min(min(l[0].z, l[1].z), l[2].z) - receiver_margin) return;  // culled
-        clamped = true;
-        clamp_depth = deepest + receiver_margin;
-        for (int k = 0; k < 3; ++k)  // -light.xyz: the light's unit direction in model space
-            far[k] = to_clip(vec4(p[k] - light.xyz * (clamp_depth - l[k].z), 1.0));
+        if (deepest_receiver(lo, hi) < min(min(l[0].z, l[1].z), l[2].z) - receiver_margin) return;
     }
 #endif
+    vec4 near[3], far[3];
     for (int k = 0; k < 3; ++k) {
         near[k] = to_clip(vec4(p[k], 1.0));
-        if (!clamped) far[k] = to_clip(at_infinity(p[k]));
+        far[k] = to_clip(at_infinity(p[k]));
     }
-    // a directional light's far corners coincide, unless clamped
-    bool positional = light.w > 0.5 || clamped;
+    bool positional = light.w > 0.5;  // a directional light's far corners coincide
     vec4 faces[8][3];
     int count = 0;
     for (int k = 0; k < 3; ++k) {
@@ -67,8 +59,10 @@ void main() {
         faces[count++] = vec4[3](near[b], near[a], far[a]);
         if (positional) faces[count++] = vec4[3](near[b], far[a], far[b]);
     }
-    if (caps) faces[count++] = near;
-    if ((caps && positional) || clamped) faces[count++] = vec4[3](far[2], far[1], far[0]);
+    if (caps) {
+        faces[count++] = near;
+        if (positional) faces[count++] = vec4[3](far[2], far[1], far[0]);
+    }
     for (int round = 0; round < (increments_first ? 2 : 1); ++round) {
         for (int i = 0; i < count; ++i) {
             bool increments = front_facing(faces[i][0], faces[i][1], faces[i][2])
