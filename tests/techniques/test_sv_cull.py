@@ -3,7 +3,8 @@ shipped scene and hard case, with fewer volume fragments (frags_shadow) on a sca
 
 Broken version the tests were run against once (and failed): a cull that is not conservative
 (a volume culled when the deepest receiver in its footprint lies short of the triangle's
-deepest corner instead of its nearest): test_cc_leaves_v_unchanged fails on ...
+deepest corner instead of its nearest): test_cc_leaves_v_unchanged fails on
+hard_dueling_frusta (5,747 pixels), test_cc_lowers_fill_on_a_scale_scene on its factor.
 """
 
 import numpy as np
