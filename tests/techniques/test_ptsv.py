@@ -23,19 +23,18 @@ from harness.technique import Frame, reset_gl_state
 from techniques.ptsv import PerTriangleShadowVolumes
 from techniques.sv.sv import ShadowVolumes
 
-RES = 96
+RES = 64
 HARD_CASES = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
 SCENES = [(SCENE_FILE, name) for name, scene in config.load_scenes(SCENE_FILE).items()
           if scene.family is None] + [(HARD_CASES, name) for name in config.load_scenes(HARD_CASES)]
-# Pixels where ptsv's V and sv's differ at 96x96, measured, by reason (see _differences): on a
+# Pixels where ptsv's V and sv's differ at 64x64, measured, by reason (see _differences): on a
 # surface the light does not reach, a tie, sv wrong, unexplained (always 0).
 DIFFERENCES = {
-    "sphere_plane": (2, 0, 0, 0), "crowd": (0, 0, 1, 0), "slant_edge": (22, 0, 0, 0),
-    "hard_dueling_frusta": (5747, 0, 0, 0),  # lit from below the ground: none of it compared
+    "castle": (0, 0, 1, 0), "slant_edge": (19, 0, 0, 0), "hard_grazing_light": (0, 1, 0, 0),
+    "hard_dueling_frusta": (2559, 0, 0, 0),  # lit from below the ground: none of it compared
     # sv wrong: the occluder the near plane cuts; float32 depths 1e5 units from the origin
-    "hard_near_plane_crossing": (0, 0, 21, 0), "hard_far_from_origin": (0, 0, 34, 0),
-    "hard_texel_corners": (144, 0, 0, 0), "hard_degenerate_open_meshes": (17, 0, 0, 0),
-    "hard_point_ring": (2, 0, 0, 0),
+    "hard_near_plane_crossing": (0, 0, 13, 0), "hard_far_from_origin": (0, 0, 5, 0),
+    "hard_texel_corners": (60, 0, 0, 0), "hard_degenerate_open_meshes": (6, 1, 0, 0),
 }
 # One big triangle high over a ground plane, the camera between them looking down, the light
 # straight down: every sample is in the triangle's volume, so its root test accepts.
