@@ -5,10 +5,10 @@ accepted at the root; bad parameters are refused.
 
 Broken versions each test was run against once (and failed):
 - a trivial accept that skips the depth test (``classify`` calling a box inside without the
-  triangle's plane): test_same_v_as_sv fails on crowd, silhouette_hard, jeep and
-  hard_spot_close (8 to 80 pixels shadowed that the exact oracle says are lit);
+  triangle's plane): test_same_v_as_sv fails on crowd, jeep and hard_spot_close (4 to 20
+  pixels shadowed that the exact oracle says are lit);
 - an edge plane with its sign flipped (the third edge plane of every volume negated):
-  test_same_v_as_sv fails on every scene (1,168 to 8,625 pixels);
+  test_same_v_as_sv fails on 26 of the 26 scenes;
 - the root's accept turned into a descent: test_volume_over_the_whole_screen fails (no root
   accept; four accepts, seven node tests below it).
 """
