@@ -27,6 +27,7 @@ COUNTER_NAMES = ("volumes_queued", "triangles_culled", "node_tests", "trivial_ac
 COUNT_LEVELS = 8
 EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which it casts nothing
 MIN_CAPACITY = 1 << 14
+MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the triangles go in batches
 ITEM_BYTES = 8  # (volume, node)
 PLANES_BYTES = 64  # four vec4 per volume
 BOX_BYTES = 32
@@ -130,8 +131,10 @@ class SampleHierarchy:
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
         self.capacity = self.volume_capacity = 0
         self.queues = self.planes = None
-        self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)), max(MIN_CAPACITY, triangles // 4))
+        self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
+                   max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
         self.regrowths = 0
+        self.batch = triangles  # triangles per traversal batch, halved while queues overflow
 
     @property
     def mem_bytes(self) -> int:
@@ -176,21 +179,36 @@ class SampleHierarchy:
                  origin: np.ndarray, tie: float, count: bool = False) -> np.ndarray:
         """Mark the samples and nodes inside the volumes of the scene's triangles (vertex and
         index buffers of the scene mesh) for ``light`` (homogeneous), positions taken relative
-        to ``origin`` (float32, near the scene). Runs again, with room,
-        until no queue overflowed. Returns the counters (read back)."""
-        while True:
-            counters = self._traverse_once(position, vertices, indices, light, origin, tie,
-                                           count)
+        to ``origin`` (float32, near the scene). The triangles go in batches (all at once
+        unless a frame needed more room): a batch whose queues overflowed runs again with room
+        (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
+        once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
+        counters (read back), summed over the batches."""
+        _zero(self.marks)
+        total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
+        self.peak = self.batches = start = 0
+        while start < self.triangles:
+            end = min(start + self.batch, self.triangles)
+            counters = self._traverse_batch(position, vertices, indices, light, origin, tie,
+                                            count, start, end)
             needed = int(counters[COUNT_LEVELS:].max(initial=0))
             volumes = int(counters[0])
             if needed <= self.capacity and volumes <= self.volume_capacity:
-                return counters
+                total += counters
+                self.peak = max(self.peak, needed)
+                self.batches += 1
+                start = end
+                continue
             self.regrowths += 1
-            self._grow(1 << max(needed - 1, 1).bit_length(), 1 << max(volumes - 1, 1).bit_length())
+            if self.capacity < MAX_CAPACITY or needed <= MAX_CAPACITY:
+                self._grow(min(1 << max(needed - 1, 1).bit_length(), MAX_CAPACITY),
+                           1 << max(volumes - 1, 1).bit_length())
+            else:
+                self.batch = max(1, (end - start) // 2)
+        return total
 
-    def _traverse_once(self, position, vertices, indices, light, origin, tie,
-                       count) -> np.ndarray:
-        _zero(self.marks)
+    def _traverse_batch(self, position, vertices, indices, light, origin, tie, count,
+                        start: int, end: int) -> np.ndarray:
         _zero(self.counters)
         self._bind()
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 0, vertices)
@@ -200,9 +218,9 @@ class SampleHierarchy:
         shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
                       volume_capacity=self.volume_capacity, sample_count=self.samples)
         setup = self.setup_programs[count].use()
-        _set(setup, light_vector=np.asarray(light, np.float32), triangle_count=self.triangles,
-             root=self.root, root_level=self.levels, **shared)
-        GL.glDispatchCompute(*_rows(-(-self.triangles // 64)), 1)
+        _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
+             triangle_end=end, root=self.root, root_level=self.levels, **shared)
+        GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
         traverse = self.traverse_programs[count]
         traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
@@ -228,11 +246,12 @@ class SampleHierarchy:
         return counters
 
     def counts(self, counters: np.ndarray) -> dict:
-        """The counted work of one traversal (run with ``count``) as result columns."""
+        """The counted work of the last traversal (run with ``count``) as result columns:
+        ``queue_peak`` is the most items one level's queue held in one batch."""
         queued = counters[COUNT_LEVELS + 1:COUNT_LEVELS + self.levels + 1]
         out = {name: int(counters[i]) for i, name in enumerate(COUNTER_NAMES)}
-        out.update(queue_items=int(queued.sum()), queue_peak=int(queued.max(initial=0)),
-                   hierarchy_levels=self.levels)
+        out.update(queue_items=int(queued.sum()), queue_peak=self.peak,
+                   traversal_batches=self.batches, hierarchy_levels=self.levels)
         return out
 
     def release(self) -> None:

@@ -15,7 +15,8 @@ layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 
 layout(std430, binding = 8) readonly buffer Closed { int closed_side[]; };
 // (position, 1) for a spot or point light, (-direction, 0) directional
 uniform vec4 light_vector;
-uniform uint triangle_count;
+uniform uint first_triangle;  // this batch's triangles: first_triangle .. triangle_end - 1
+uniform uint triangle_end;
 uniform uint root;  // the root's node number
 uniform uint root_level;
 
@@ -34,9 +35,10 @@ vec4 edge_plane(vec3 p, vec3 q, vec4 light, vec3 inner) {
 }
 
 void main() {
-    uint triangle = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
+    uint triangle = first_triangle
+        + (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
         + gl_LocalInvocationIndex;
-    if (triangle >= triangle_count) return;
+    if (triangle >= triangle_end) return;
     vec3 p[3] = vec3[3](corner(triangle, 0u), corner(triangle, 1u), corner(triangle, 2u));
     vec3 n = cross(p[1] - p[0], p[2] - p[0]);
     vec4 light = vec4(light_vector.xyz - origin * light_vector.w, light_vector.w);

@@ -169,3 +169,18 @@ def test_bad_parameters_exit_2(tmp_path, capsys, setting, message):
     err = capsys.readouterr().err.strip()
     assert str(experiment) in err and message in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_batches_when_the_queues_are_full(frames, monkeypatch):
+    """Queues capped at 256 items: the triangles go in batches (counted), V the same as in one
+    batch. Broken version run against it once: a batch's marks cleared before the next batch
+    (only the last batch's shadows left): V differs."""
+    from techniques.ptsv import hierarchy
+
+    frame = frames(SCENE_FILE, "pins")
+    whole = _render(PerTriangleShadowVolumes, frame)
+    monkeypatch.setattr(hierarchy, "MIN_CAPACITY", 64)
+    monkeypatch.setattr(hierarchy, "MAX_CAPACITY", 256)
+    batched = _render(PerTriangleShadowVolumes, frame)
+    assert whole.extra["traversal_batches"] == 1 and batched.extra["traversal_batches"] > 1
+    assert np.array_equal(whole.visibility, batched.visibility)
