@@ -32,7 +32,8 @@ class PerTriangleShadowVolumes(Technique):
     (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles);
     ``volumes`` computes every triangle's volume from the frame's light (directional, spot or
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
-    per-triangle volumes) and tests the root, then descends level by level: a node outside the
+    per-triangle volumes; in a closed part only the triangles facing the light, which shadow
+    all that the part does) and tests the root, then descends level by level: a node outside the
     volume is skipped, one inside is marked shadowed whole, any other has its children tested,
     down to the samples themselves. Work moves between levels in queues of (volume, node)
     items filled by atomics and dispatched indirectly; a work group tests one node's children,
@@ -45,9 +46,11 @@ class PerTriangleShadowVolumes(Technique):
     Counted in an untimed repeat whenever the light, the camera or an object moved:
     ``node_tests`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes marked
     whole; ``root_accepts`` of them at the root), ``sample_tests``, ``triangles_culled``
-    (edge-on, or the root's box outside the volume), ``queue_items`` and ``queue_peak``. No
-    volume is rasterised (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the
-    queued volumes and the work queues, which grow when a frame overflows them.
+    (edge-on, turned from the light in a closed part, or the root's box outside the volume),
+    ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
+    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the queued volumes and the
+    work queues, which grow when a frame overflows them, up to 2^22 items a queue; past that
+    the triangles are traversed in batches (``hierarchy.py``).
 
     ==============  ====================================================  =======  ===========
     Parameter       Meaning                                               Default  Range
