@@ -133,7 +133,6 @@ class SampleHierarchy:
         self.queues = self.planes = None
         self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
                    max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
-        self.regrowths = 0
         self.batch = triangles  # triangles per traversal batch, halved while queues overflow
 
     @property
@@ -199,7 +198,6 @@ class SampleHierarchy:
                 self.batches += 1
                 start = end
                 continue
-            self.regrowths += 1
             if self.capacity < MAX_CAPACITY or needed <= MAX_CAPACITY:
                 self._grow(min(1 << max(needed - 1, 1).bit_length(), MAX_CAPACITY),
                            1 << max(volumes - 1, 1).bit_length())
