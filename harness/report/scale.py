@@ -14,7 +14,7 @@ from . import plots
 LEVEL = 1.5  # equal error: edge_mae within 1.5 x edge_floor, the level of the scenes' picks
 EXPONENT_METRICS = {"time_ms": "time", "frags_shadow": "shadow fragments",
                     "vertex_invocations": "vertex invocations"}
-PAIRS_ALSO = (("sv", "sm"),)  # besides each technique against the baseline
+PAIRS_ALSO = (("sv", "sm"), ("ptsv", "sv"))  # besides each technique against the baseline
 
 
 def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict | None:
