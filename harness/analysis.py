@@ -188,7 +188,7 @@ def summary(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae",
     columns are empty. ``reference`` defaults to the registered baseline technique."""
     from . import registry
 
-    reference = reference or registry.baseline()
+    reference = reference or registry.baseline(among=set(df["technique"]))
     rows = _rows(df, _finite(df, cost, error), cost, error)
     if rows.empty:
         return pd.DataFrame(columns=SUMMARY_COLUMNS)

@@ -1,8 +1,9 @@
-"""shadowbench list | run | reference | report | compare.
+"""shadowbench list | plan | run | reference | report | compare.
 
 Exit codes: 0 all runs ok; 1 some runs failed (their rows say why), or the machine failed the
 command (a full disk: one line naming the file); 2 bad input (one line on stderr naming file
-and key; nothing written); 130 interrupted. Anything else is a bug: its traceback is printed
+and key, a line for each further error of a file, up to five; nothing written); 130
+interrupted. Anything else is a bug: its traceback is printed
 under a line asking to report it.
 """
 
@@ -22,6 +23,9 @@ from .config import ConfigError
 from .timing import NOISY_CONTENTION, STATISTICS, too_noisy
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
+# the scenes shipped with shadowbench: beside the harness package in a checkout or an editable
+# install (a wheel does not carry them)
+SHIPPED_SCENE_FILE = Path(__file__).resolve().parent.parent / "scenes.yaml"
 MAX_WORKERS = 256
 # OSErrors that say the machine could not finish the command, not that the input was bad
 MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
@@ -58,78 +62,66 @@ def _check_out(text: str) -> None:
         raise ConfigError(f"--out {text}: cannot write in {existing}: {reason}")
 
 
+def scene_file(text: str | None) -> Path | None:
+    """The scene file a command reads: ``--scene-file`` as given (a missing one is bad input),
+    else ./scenes.yaml, else the scenes shipped beside the installed package (a source checkout
+    or an editable install); None when there is none."""
+    if text is not None:
+        if not Path(text).is_file():
+            raise ConfigError(f"--scene-file {text}: no such file")
+        return Path(text)
+    for path in (Path(DEFAULT_SCENE_FILE), SHIPPED_SCENE_FILE):
+        if path.is_file():
+            return path
+    return None
+
+
+def _scene_file_or_error(text: str | None) -> str:
+    path = scene_file(text)
+    if path is None:
+        raise ConfigError("no scene file: no ./scenes.yaml, and none shipped with the package; "
+                          "give one with --scene-file")
+    return str(path)
+
+
 def cmd_list(args) -> int:
-    """Every technique with each parameter's default and allowed values and its quality knobs
-    (the values its curve walks), then the scenes."""
-    import types
-    import typing
+    """Every technique with its parameters, broken entry points and stale editable installs;
+    then the scenes and the file they came from; ``--scene NAME``: that scene's objects as
+    placed. Two declared baselines are bad input (exit 2), after the listing."""
+    from . import listing, registry
 
-    import annotated_types as at
-    from pydantic import AfterValidator
-    from pydantic_core import PydanticUndefined
+    if args.scene:
+        print("\n".join(listing.inspect_lines(Path(_scene_file_or_error(args.scene_file)),
+                                               args.scene)))
+        return 0
+    print("\n".join(listing.techniques_lines()))
+    print("\n".join(listing.scenes_lines(scene_file(args.scene_file))))
+    for line in registry.stale_installs():
+        print(f"warning: {line}", file=sys.stderr)
+    registry.baseline()
+    return 0
 
-    from . import config, registry
 
-    def show(value) -> str:
-        if isinstance(value, bool):
-            return str(value).lower()
-        return str(value)
+def _plan(args):
+    from . import run
 
-    def allowed(annotation) -> str:
-        """``grid | jitter`` for a Literal, the type's name otherwise (unions joined)."""
-        origin = typing.get_origin(annotation)
-        if origin is typing.Literal:
-            return " | ".join(show(v) for v in typing.get_args(annotation))
-        if origin in (typing.Union, types.UnionType):
-            return " | ".join(allowed(a) for a in typing.get_args(annotation))
-        if annotation is bool:
-            return "true | false"
-        if annotation is type(None):
-            return "none"
-        return getattr(annotation, "__name__", str(annotation))
+    return run.plan_runs(
+        experiment_path=args.experiment, scene_file=_scene_file_or_error(args.scene_file),
+        scenes=_names("--scenes", args.scenes),
+        techniques=_names("--techniques", args.techniques),
+        overrides=run.parse_overrides(args.set or []),
+        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
+                "max_runs": args.max_runs, "cost": args.cost})
 
-    def limit(meta) -> str | None:
-        for kind, op in ((at.Ge, ">="), (at.Gt, ">"), (at.Le, "<="), (at.Lt, "<")):
-            if isinstance(meta, kind):
-                return f"{op} {show(getattr(meta, kind.__name__.lower()))}"
-        if isinstance(meta, at.MultipleOf):
-            return f"multiple of {show(meta.multiple_of)}"
-        if isinstance(meta, AfterValidator):
-            if meta.func is config.square_number:
-                return "square number"
-            return getattr(meta.func, "__name__", None)
-        return None  # other metadata (strictness, ...) says nothing about the range
 
-    print("techniques:")
-    for name, cls in registry.techniques().items():
-        print(f"  {name:10s} {cls.summary}  [{cls.paper}]")
-        for pname, field in cls.Params.model_fields.items():
-            default = (field.default_factory() if field.default_factory is not None
-                       else "(required)" if field.default is PydanticUndefined
-                       else field.default)
-            limits = [text for text in map(limit, field.metadata) if text]
-            range_text = ", ".join([allowed(field.annotation)] + limits)
-            print(f"      {pname:14s} default {show(default):11s} {range_text}")
-        for knob, values in cls.quality_knobs.items():
-            print(f"      quality knob {knob}: {', '.join(map(show, values))}")
-    path = Path(args.scene_file)
-    if path.is_file():
-        print(f"scenes ({path}):")
-        for name, scene in config.load_scenes(path, triangle_budget=None).items():
-            geometry = (f"{scene.family.kind} family, {scene.family.triangles:,} triangles"
-                        if scene.family else f"{len(scene.objects)} objects")
-            if scene.family and scene.objects:
-                geometry += f" and {len(scene.objects)} objects"
-            print(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
-                  f"{scene.light.type} light, {geometry}, effects {'+'.join(scene.effects)}")
-            if scene.description:
-                print(f"      {scene.description}")
-            for obj in scene.objects:
-                if isinstance(obj, config.MeshFile):
-                    parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
-                    print(f"      mesh {obj.path}: {parts.summary()}")
-    else:
-        print(f"scenes: no scene file at {path}")
+def cmd_plan(args) -> int:
+    """The runs ``run`` would make with these arguments, rendering nothing."""
+    from . import listing
+
+    plan = _plan(args)
+    out = Path(args.out) if args.out else None
+    stored = Path(args.from_dir) if args.from_dir else out
+    print("\n".join(listing.plan_lines(plan, out, stored)))
     return 0
 
 
@@ -141,13 +133,9 @@ def cmd_run(args) -> int:
     if not 1 <= args.workers <= MAX_WORKERS:
         raise ConfigError(f"--workers: must be in [1, {MAX_WORKERS}], got {args.workers}")
     _check_out(args.out)
-    plan = run.plan_runs(
-        experiment_path=args.experiment, scene_file=args.scene_file,
-        scenes=_names("--scenes", args.scenes),
-        techniques=_names("--techniques", args.techniques),
-        overrides=run.parse_overrides(args.set or []),
-        timing={"frames": args.frames, "warmup": args.warmup, "statistics": args.statistics,
-                "max_runs": args.max_runs, "cost": args.cost})
+    plan = _plan(args)
+    for note in plan.notes:
+        print(note, file=sys.stderr)
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
@@ -214,7 +202,7 @@ def cmd_reference(args) -> int:
         except ValueError as e:
             raise ConfigError(f"--resolution: {e}") from None
     _check_out(args.out)
-    scene = load_scene(args.scene, args.scene_file)
+    scene = load_scene(args.scene, _scene_file_or_error(args.scene_file))
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)
     interrupt.raise_if_interrupted()
@@ -255,21 +243,49 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="shadowbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
-    def scene_file(q):
-        q.add_argument("--scene-file", default=DEFAULT_SCENE_FILE,
-                       help="scene file (default ./scenes.yaml)")
+    def scene_file_option(q):
+        q.add_argument("--scene-file", default=None,
+                       help="scene file (default ./scenes.yaml, else the shipped scenes)")
 
     q = sub.add_parser("list", help="techniques with their parameters; scenes")
-    scene_file(q)
+    scene_file_option(q)
+    q.add_argument("--scene", metavar="NAME",
+                   help="that scene's objects as placed: bounds, up axis, triangles, parts")
     q.set_defaults(func=cmd_list)
 
+    def planning(q):
+        """The options that choose the runs: ``run``'s and ``plan``'s."""
+        q.add_argument("experiment", nargs="?", help="experiment YAML (experiments/*.yaml)")
+        scene_file_option(q)
+        q.add_argument("--scenes", help="comma-separated scene names")
+        q.add_argument("--techniques", help="comma-separated technique names")
+        q.add_argument("--set", action="append", metavar="TECHNIQUE.PARAM=VALUE",
+                       help="override a parameter, e.g. --set pcf.k=16 (repeatable)")
+        q.add_argument("--frames", metavar="N",
+                       help="measured frames per run, after the warm-up (default: the "
+                            "experiment's, else 15)")
+        q.add_argument("--warmup", metavar="N",
+                       help="unmeasured frames before them (default: the experiment's, else 2)")
+        q.add_argument("--statistics", metavar="METHOD",
+                       help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
+                            "(default: the experiment's, else order)")
+        q.add_argument("--max-runs", metavar="N",
+                       help="refuse a plan of more runs (default: the experiment's, else 5000)")
+        q.add_argument("--cost", metavar="POLICY",
+                       help="dynamic (every frame pays for what depends on the light and the "
+                            "geometry) or static (that is done once, reported as setup_ms; "
+                            "default: the experiment's, else dynamic)")
+
+    q = sub.add_parser("plan", help="the runs `run` would make, grouped, with a time estimate; "
+                                    "renders nothing")
+    planning(q)
+    q.add_argument("--out", help="the folder `run` would write: its runs are done already")
+    q.add_argument("--from", dest="from_dir", metavar="DIR",
+                   help="estimate the time from the runs stored in DIR (default: --out)")
+    q.set_defaults(func=cmd_plan)
+
     q = sub.add_parser("run", help="run an experiment (or every technique on every scene)")
-    q.add_argument("experiment", nargs="?", help="experiment YAML (experiments/*.yaml)")
-    scene_file(q)
-    q.add_argument("--scenes", help="comma-separated scene names")
-    q.add_argument("--techniques", help="comma-separated technique names")
-    q.add_argument("--set", action="append", metavar="TECHNIQUE.PARAM=VALUE",
-                   help="override a parameter, e.g. --set pcf.k=16 (repeatable)")
+    planning(q)
     q.add_argument("--out", required=True, help="run directory")
     q.add_argument("--platform", choices=["osmesa", "egl"], default=None,
                    help="GL platform (default osmesa, or $SHADOWBENCH_GL)")
@@ -280,20 +296,6 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--workers", type=int, default=2, metavar="N",
                    help="with --executor dask and no --scheduler: LocalCluster workers "
                         "(one thread each; default 2)")
-    q.add_argument("--frames", metavar="N",
-                   help="measured frames per run, after the warm-up (default: the experiment's, "
-                        "else 15)")
-    q.add_argument("--warmup", metavar="N",
-                   help="unmeasured frames before them (default: the experiment's, else 2)")
-    q.add_argument("--statistics", metavar="METHOD",
-                   help=f"the 95%% interval of each median time: {' or '.join(STATISTICS)} "
-                        "(default: the experiment's, else order)")
-    q.add_argument("--max-runs", metavar="N",
-                   help="refuse a plan of more runs (default: the experiment's, else 5000)")
-    q.add_argument("--cost", metavar="POLICY",
-                   help="dynamic (every frame pays for what depends on the light and the "
-                        "geometry) or static (that is done once, reported as setup_ms; "
-                        "default: the experiment's, else dynamic)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -302,7 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     q = sub.add_parser("reference", help="compute (or fetch from cache) a scene's reference")
     q.add_argument("--scene", required=True)
-    scene_file(q)
+    scene_file_option(q)
     q.add_argument("--out", required=True)
     q.add_argument("--samples", type=int, default=16, help="samples per pixel (a square)")
     q.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
@@ -313,8 +315,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("dir")
     q.set_defaults(func=cmd_report)
 
-    q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER; "
-                                       "exit 1 when something got worse")
+    q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER, run by "
+                                       "run (a run in one folder only paired with the other's "
+                                       "of its scene, size and technique, its changed "
+                                       "parameters shown); exit 1 when something got worse")
     q.add_argument("before")
     q.add_argument("after")
     q.add_argument("--factor", type=float, default=1.1,
@@ -358,7 +362,8 @@ def main(argv: list[str] | None = None) -> int:
                 traceback.print_exc()
                 return 1
             code, message = known
-            print(f"shadowbench: {_printable(message)}", file=sys.stderr)
+            for line in (message, *getattr(e, "more", ())):  # a file's further errors
+                print(f"shadowbench: {_printable(line)}", file=sys.stderr)
             return code
 
 

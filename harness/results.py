@@ -13,39 +13,11 @@ import math
 import os
 from pathlib import Path
 
+from .columns import COLUMNS, JSON_COLUMNS, RENAMED
 from .config import ConfigError
 
 SCHEMA_VERSION = 1
 
-# name -> type; these keep their names and meaning (DESIGN.md). Techniques may add columns.
-COLUMNS: dict[str, type] = {
-    "run_id": str, "schema": int, "scene": str, "technique": str, "params": str,
-    "family": str,
-    "width": int, "height": int, "res": float,
-    "triangles": int, "parts": int, "open_parts": int, "shadow_edges": int,
-    "time_ms": float, "time_ms_min": float, "time_ms_max": float, "frames": int,
-    "time_ms_ci_low": float, "time_ms_ci_high": float, "frame_ms": str,
-    "cost": str, "setup_ms": float, "setup_ms_ci_low": float, "setup_ms_ci_high": float,
-    "cpu_contention": float, "noisy": int,
-    "scene_ms": float,
-    "frags_scene": float, "frags_shadow": float, "overdraw": float, "mem_bytes": float,
-    "fetches_per_px": float, "covered_px": float,
-    "vertex_invocations": float, "fragment_invocations": float, "primitives": float,
-    "compute_invocations": float,
-    "gpu_estimate_ms": float,
-    "mae": float, "rmse": float, "wrong_pct": float, "edge_mae": float, "ssim": float,
-    "psnr": float, "flip": float, "levels": float,
-    "acne_pct": float, "leak_pct": float, "edge_floor": float, "edge_ratio": float,
-    # moving scenes: flicker at fixed world points (metrics.world_flicker)
-    "world_flicker": float, "world_flicker_max": float, "world_changed_pct": float,
-    "world_changed_pct_max": float,
-    "nonfinite": float, "v_min": float, "v_max": float,
-    "passes": str, "renderer": str, "status": str, "error": str, "warnings": str,
-    "code_version": str, "ref_samples": int, "ref_seconds": float,
-    "ref_build_seconds": float, "array": str,
-    "reference_array": str,
-    "finished_at": str,
-}
 RESULTS_FILE = "results.csv"
 
 
@@ -68,6 +40,8 @@ def replace_atomically(path: str | Path, write) -> None:
             break
         except FileExistsError:
             continue
+        except OSError as e:  # the user's path, not the temporary name they never gave
+            raise OSError(e.errno, e.strerror, str(path)) from e
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -146,6 +120,9 @@ def read_rows(out_dir: str | Path) -> list[dict[str, str]]:
     missing = [c for c in OWN_COLUMNS if c not in columns]
     if missing:
         raise _not_ours(path, f"no {', '.join(missing)} column")
+    renamed = {old: new for old, new in RENAMED.items() if old in columns and new not in columns}
+    if renamed:  # a folder written before a column was renamed: its rows under the new name
+        rows = [{renamed.get(k, k): v for k, v in row.items()} for row in rows]
     return rows
 
 
@@ -218,16 +195,26 @@ def mark_damaged_runs(out_dir: str | Path) -> list[dict]:
     return damaged
 
 
-def load(out_dir: str | Path):
-    """Results of a run directory as a DataFrame: known columns typed, ``params`` parsed."""
+def load(out_dir: str | Path, *, stale: str = "drop"):
+    """Results of a run directory as a DataFrame: known columns typed (docs/results.md), the
+    JSON columns (``params``, ``frame_ms``, ``passes``) parsed, old column names read as their
+    new ones (``res`` as ``map_res``).
+
+    Stale rows: a row is stale when a later row of the same scene, size, technique and
+    parameters has another ``code_version`` (the technique changed and the run was made again).
+    ``stale="drop"`` (the default) leaves them out; ``"flag"`` keeps every row and adds a
+    boolean ``stale`` column."""
     import pandas as pd
 
+    if stale not in ("drop", "flag"):
+        raise ValueError(f"stale: 'drop' or 'flag', got {stale!r}")
     path = Path(out_dir) / RESULTS_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no results here (run `shadowbench run --out {out_dir}`)")
-    if not read_rows(out_dir):
+    rows = read_rows(out_dir)
+    if not rows:
         raise ConfigError(f"{path}: no results in it yet")
-    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    df = pd.DataFrame.from_records(rows).fillna("")
     for name in df.columns:
         kind = COLUMNS.get(name)
         if kind in (int, float) or (kind is None and _numeric(df[name])):
@@ -236,10 +223,24 @@ def load(out_dir: str | Path):
                 df[name] = df[name].astype("int64")
             elif kind is float:  # "8388608" parses as an integer; the column is still float
                 df[name] = df[name].astype("float64")
-    try:
-        df["params"] = df["params"].map(lambda s: json.loads(s) if s else {})
-    except ValueError as e:
-        raise _not_ours(path, f"a params cell is not JSON: {e}") from None
+    for name in JSON_COLUMNS:
+        if name not in df.columns:
+            continue
+        empty = {} if name == "params" else None
+        try:
+            df[name] = df[name].map(lambda s: json.loads(s) if s else empty)
+        except ValueError as e:
+            raise _not_ours(path, f"a {name} cell is not JSON: {e}") from None
+    key = [c for c in ("scene", "width", "height", "technique") if c in df.columns]
+    same_run = df[key].astype(str).agg("|".join, axis=1) + "|" + df["params"].map(
+        lambda p: json.dumps(p, sort_keys=True))
+    if "code_version" in df.columns:
+        latest = df["code_version"].groupby(same_run).transform("last")
+        df["stale"] = df["code_version"] != latest
+    else:
+        df["stale"] = False
+    if stale == "drop":
+        df = df[~df["stale"]].drop(columns="stale").reset_index(drop=True)
     return df
 
 

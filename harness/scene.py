@@ -137,6 +137,18 @@ class BuiltScene:
                 "open_parts": self.edges.open_parts,
                 "shadow_edges": topology.shadow_edges(self.edges, self.triangles, self.light)}
 
+    @property
+    def mesh_notes(self) -> str:
+        """What the scene's mesh files hold that defines no triangle, one line per file that
+        has any: ``models/temple.obj: skipped 201 faces with fewer than 3 vertices``."""
+        notes = []
+        for obj in self.config.objects:
+            if isinstance(obj, cfg.MeshFile):
+                path = cfg.resolve_mesh_path(self.source or Path("."), obj)
+                if note := cfg.mesh_parts(path, obj.up).notes():
+                    notes.append(f"{obj.label}: {note}")
+        return "\n".join(notes)
+
     def _sharing_geometry(self, scene: "BuiltScene") -> "BuiltScene":
         """``scene`` (of the same triangles) given what this one computed of them."""
         for name in _GEOMETRY:

@@ -65,8 +65,9 @@ class ShadowOutput:
     fetches_per_px: float
     nonfinite: int = 0  # NaN/Inf seen in the technique's matrices
     # fragments of the shadow geometry when the technique counts them itself (e.g. shadow
-    # volumes drawn with the depth test off, DESIGN's overdraw O); else the harness sums the
-    # fragments of the measured passes
+    # volumes drawn with the depth test off: the silhouette-map paper's overdraw O, the
+    # `overdraw` column of docs/results.md); else the harness sums the fragments of the
+    # measured passes
     shadow_fragments: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # additional result columns
     # per-pixel diagnostic maps (float (H, W)), stored with the run and shown by the report
@@ -84,7 +85,8 @@ class Technique:
     # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
     quality_knobs: ClassVar[dict[str, tuple]] = {}
     # The technique whose cost the others' is divided by at equal error (analysis.summary, the
-    # dashboard's overview): one registered technique says so, the harness names none.
+    # dashboard's overview): one registered technique says so in its own class body, the harness
+    # names none. A subclass does not inherit it (:func:`declares_baseline`).
     baseline: ClassVar[bool] = False
     # Light types (harness.scene.Light.type) the technique does not render, each with the
     # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
@@ -141,6 +143,12 @@ class Technique:
             return here / name if (here / name).is_file() else HARNESS_GLSL / name
 
         return Program(find(vertex), find(fragment), defines or None)
+
+
+def declares_baseline(cls: type[Technique]) -> bool:
+    """Whether ``baseline = True`` is in the class's own body: a plugin subclassing the
+    baseline's class (to change a bias, say) is not a second baseline."""
+    return cls.__dict__.get("baseline") is True
 
 
 def check_quality_knobs(cls: type[Technique]) -> None:

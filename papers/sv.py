@@ -32,7 +32,9 @@ def _frame_ratio(row) -> float:
 
 
 def _pass_fragments(row, name: str) -> int:
-    return sum(p["fragments"] for p in json.loads(row["passes"]) if p["name"] == name)
+    passes = row["passes"]  # parsed by results.load; JSON text in a row read otherwise
+    passes = json.loads(passes) if isinstance(passes, str) else passes
+    return sum(p["fragments"] for p in passes if p["name"] == name)
 
 
 def table2_claims(runs: Runs) -> list[Claim]:

@@ -109,3 +109,39 @@ def make_results():
         return folder
 
     return write
+
+
+@pytest.fixture(scope="session")
+def plugin_env(tmp_path_factory):
+    """``plugin_env(*sources)``: the environment of a shell in which the plugin distributions
+    at ``sources`` (folders with a pyproject.toml) are installed: each built offline from a copy
+    (a build writes beside its sources; the repository stays as it was) into one folder put
+    first on PYTHONPATH.
+
+    setuptools builds them, with its own build_py and egg_info rather than through pip: the
+    setuptools of Python 3.11's venv (65.5) builds a wheel only with the separate ``wheel``
+    package, which is not installed, and pip has no other way to build offline. The installed
+    files are the same, and importlib.metadata reads the egg-info's entry_points.txt as it
+    reads a wheel's dist-info."""
+    import shutil
+    import subprocess
+    import sys
+
+    pytest.importorskip("setuptools")
+
+    def install(*sources: Path) -> dict:
+        work = tmp_path_factory.mktemp("plugins")
+        site = work / "site"
+        for source in sources:
+            copy = work / Path(source).name
+            shutil.copytree(source, copy)
+            build = subprocess.run([sys.executable, "-c", "from setuptools import setup; setup()",
+                                    "-q", "build_py", "--build-lib", str(site),
+                                    "egg_info", "--egg-base", str(site)],
+                                   cwd=copy, capture_output=True, text=True, timeout=120)
+            assert build.returncode == 0, build.stderr
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(site), env.get("PYTHONPATH")]))
+        return env
+
+    return install

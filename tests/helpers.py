@@ -281,3 +281,15 @@ def one_frame_of(technique, frame):
         return output
 
     return one_frame
+
+
+def canonical_triangles(triangles: np.ndarray) -> np.ndarray:
+    """Triangles (T, 3, 3) in a canonical order, each turned to start at its smallest vertex
+    (the same triangle, the same winding, whichever corner a fan starts at): (T, 9), to
+    compare two loaders' triangles."""
+    triangles = np.asarray(triangles, np.float64).round(6) + 0.0
+    _, ids = np.unique(triangles.reshape(-1, 3), axis=0, return_inverse=True)
+    first = np.argmin(ids.reshape(-1, 3), axis=1)
+    turned = triangles[np.arange(len(triangles))[:, None], (first[:, None] + np.arange(3)) % 3]
+    rows = turned.reshape(-1, 9)
+    return rows[np.lexsort(rows.T[::-1])]

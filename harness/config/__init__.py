@@ -19,8 +19,8 @@ from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Ca
                            Scene, SceneFile, SceneObject, Size, Sphere, SpotLight, SquareInt,
                            Strict, TriangleCount, Vec3, check_resolution, load_scenes,
                            square_number)
-from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, format_validation_error,
-                          key_error, read_yaml)
+from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
+                          read_yaml, validation_error)
 from .yaml_source import _line_of as _line_of  # the planner names the line of a bad grid point
 
 __all__ = [
@@ -31,7 +31,7 @@ __all__ = [
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
     "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "TriangleCount", "Vec3",
-    "cache_root", "check_name", "check_resolution", "format_validation_error", "key_error",
+    "cache_root", "check_name", "check_resolution", "key_error",
     "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path",
-    "square_number", "with_timing",
+    "square_number", "validation_error", "with_timing",
 ]

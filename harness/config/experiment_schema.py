@@ -12,7 +12,7 @@ from pydantic import ConfigDict, Field, ValidationError, field_validator, model_
 from ..timing import STATISTICS
 from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET
 from .scene_schema import SquareInt, Strict, TriangleCount
-from .yaml_source import ConfigError, _line_of, format_validation_error, key_error, read_yaml
+from .yaml_source import ConfigError, _line_of, key_error, read_yaml, validation_error
 
 Scalar = Union[bool, int, float, str]
 
@@ -204,7 +204,7 @@ def load_experiment(path: str | Path) -> tuple[Experiment, object]:
     try:
         experiment = Experiment.model_validate(data)
     except ValidationError as e:
-        raise ConfigError(format_validation_error(path, e, node)) from None
+        raise validation_error(path, e, node, model=Experiment) from None
     if isinstance(experiment.scenes, list):
         _no_repeats(path, node, experiment.scenes)
     return experiment, node
@@ -233,5 +233,5 @@ def _grids(path: Path, node, name: str, grids, under: tuple = ()) -> Grid | list
         try:
             checked.append(Grid.model_validate(item))
         except ValidationError as e:
-            raise ConfigError(format_validation_error(path, e, node, prefix)) from None
+            raise validation_error(path, e, node, prefix, model=Grid) from None
     return checked if isinstance(grids, list) else checked[0]

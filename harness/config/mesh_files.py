@@ -1,8 +1,9 @@
 """Config's mesh files, above yaml_source and mesh_formats: where a scene's ``shape: mesh`` file
 lies, its parts (loaded once, and cached on disk by the file's content as references are, so a
-10^6-triangle file is read in seconds once and in a fraction of one after), and the check that
-scene_schema's load_scenes runs: the file is a regular file, its header fits the budget before
-it is loaded, and every number and index in it is usable."""
+10^6-triangle file is read in seconds once and in a fraction of one after), what was skipped
+in it (counted, for the manifest and each run's ``mesh_notes``), and the check that
+scene_schema's load_scenes runs: the file is a regular file, its header or cheap count fits the
+budget before it is read whole, and every number and index a triangle uses is usable."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from .mesh_formats import (check_numbers, check_vertices, declared_triangles, mesh_format,
                            read_parts)
+from .mesh_obj import SHORT_FACES
 from .yaml_source import check_regular_file, key_error
 
 
@@ -24,10 +26,11 @@ class MeshSource(Protocol):
     """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
     this module stays below the schema, with no import of it)."""
 
-    path: str  # relative to the scene file, or absolute
+    path: str  # relative to the scene file (or to the package's folder), or absolute
     up: str  # the file's up axis
+    package: str | None  # an installed top-level package the path is inside
 
-MESH_CACHE_VERSION = 1  # bump when what is cached (or how it is built) changes
+MESH_CACHE_VERSION = 2  # bump when what is cached (or how it is built) changes
 # y-up assets (most of them) turned so that their +y is the scene's +z
 UP_ROTATION = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 
@@ -41,13 +44,15 @@ def cache_root() -> Path:
 class MeshParts:
     """A mesh file's parts as the scene uses them: z up, exact duplicate vertices merged,
     zero-area triangles dropped (``dropped`` counts them), each part closed or not (every
-    edge shared by exactly two faces, in opposite directions)."""
+    edge shared by exactly two faces, in opposite directions); ``skipped``: what the file holds
+    that defines no triangle, by kind (mesh_obj.SHORT_FACES, an OBJ keyword, ...), counted."""
 
     names: tuple[str, ...]
     vertices: tuple[np.ndarray, ...]  # (V, 3) float64 each
     faces: tuple[np.ndarray, ...]  # (F, 3) int32 each
     closed: tuple[bool, ...]
     dropped: int
+    skipped: tuple[tuple[str, int], ...] = ()
 
     @property
     def triangles(self) -> int:
@@ -58,10 +63,40 @@ class MeshParts:
         return (f"{self.triangles:,} triangles in {len(self.names)} parts ({open_parts} open)"
                 + (f", {self.dropped:,} degenerate dropped" if self.dropped else ""))
 
+    def notes(self) -> str:
+        """One line saying what was skipped ('' when nothing was): ``skipped 201 faces with
+        fewer than 3 vertices, 3 l, 12 vt statements``."""
+        return skipped_note(dict(self.skipped))
+
+
+def skipped_note(skipped: dict[str, int]) -> str:
+    kinds = [f"{n:,} {what}" for what, n in skipped.items() if what == SHORT_FACES]
+    kinds += [f"{n:,} {what}" for what, n in skipped.items() if " " in what and
+              what != SHORT_FACES]
+    statements = [f"{n:,} {what}" for what, n in skipped.items() if " " not in what]
+    if statements:
+        kinds.append(", ".join(statements) + " statements")
+    return "skipped " + ", ".join(kinds) if kinds else ""
+
 
 def resolve_mesh_path(scene_path: Path, obj: MeshSource) -> Path:
+    """The file: relative to the scene file's folder, or to the folder of the installed package
+    ``obj.package`` (found by importlib without importing it); a ValueError when no such
+    package is installed."""
     p = Path(obj.path)
+    if obj.package is not None:
+        return package_folder(obj.package) / p
     return p if p.is_absolute() else Path(scene_path).parent / p
+
+
+def package_folder(package: str) -> Path:
+    import importlib.util
+
+    spec = importlib.util.find_spec(package)  # a top-level name: nothing is imported
+    if spec is None or not spec.submodule_search_locations:
+        raise ValueError(f"no installed package {package!r} (the corpus scenes' packages are "
+                         "dev dependencies: pip install -e '.[dev]')")
+    return Path(list(spec.submodule_search_locations)[0])
 
 
 _loaded: dict[str, MeshParts] = {}  # by cache key: the scene check and the build share one
@@ -86,10 +121,10 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     from ..interrupt import raise_if_interrupted
 
     fmt = mesh_format(mesh_path)
-    declared_triangles(data, fmt)  # a lying header is named before trimesh misreads it
+    declared_triangles(mesh_path, fmt)  # a lying header is named before trimesh misreads it
     check_numbers(data, fmt)
     try:
-        found = read_parts(mesh_path, fmt)
+        found, skipped = read_parts(mesh_path, fmt)
     except ValueError:
         raise  # ours, naming the line or element
     except ModuleNotFoundError:
@@ -101,7 +136,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     finally:
         raise_if_interrupted()  # trimesh catches BaseException in places, Ctrl-C included
     if not found:
-        raise ValueError("no triangles")
+        note = skipped_note(skipped)
+        raise ValueError("no triangle left" + (f" ({note})" if note else ""))
     names, vertices, faces, closed, dropped, total = [], [], [], [], 0, 0
     for name, v, f in found:
         where = f"part {name!r}: " if len(found) > 1 else ""
@@ -124,7 +160,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
             closed.append(_closed(f))
     if not faces:
         raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
-    return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped)
+    return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped,
+                     tuple(skipped.items()))
 
 
 def _merge_duplicates(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,8 +203,10 @@ def _read_cache(path: Path) -> MeshParts | None:
             vertex_ends, face_ends = z["vertex_ends"], z["face_ends"]
             vertices = np.split(z["vertices"], vertex_ends[:-1])
             faces = np.split(z["faces"], face_ends[:-1])
+            skipped = tuple((str(k), int(n)) for k, n in zip(z["skipped_kinds"],
+                                                              z["skipped_counts"]))
             return MeshParts(tuple(str(n) for n in z["names"]), tuple(vertices), tuple(faces),
-                             tuple(bool(c) for c in z["closed"]), int(z["dropped"]))
+                             tuple(bool(c) for c in z["closed"]), int(z["dropped"]), skipped)
     except (OSError, ValueError, KeyError, EOFError):
         return None
 
@@ -183,7 +222,9 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
                      dropped=parts.dropped, vertices=np.concatenate(parts.vertices),
                      faces=np.concatenate(parts.faces),
                      vertex_ends=np.cumsum([len(v) for v in parts.vertices]),
-                     face_ends=np.cumsum([len(f) for f in parts.faces]))
+                     face_ends=np.cumsum([len(f) for f in parts.faces]),
+                     skipped_kinds=np.array([k for k, _ in parts.skipped], dtype=str),
+                     skipped_counts=np.array([n for _, n in parts.skipped], dtype=np.int64))
         os.replace(temporary, path)
     except OSError:
         pass
@@ -194,7 +235,10 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
     """The mesh file's triangle count; a ConfigError naming the key when it cannot be used.
     A file whose header declares more than ``triangle_budget`` is refused before loading."""
     loc = ("scenes", scene_name, "objects", index, "path")
-    mesh_path = resolve_mesh_path(path, obj)
+    try:
+        mesh_path = resolve_mesh_path(path, obj)
+    except ValueError as e:
+        raise key_error(path, node, loc[:-1] + ("package",), str(e)) from None
     try:
         check_regular_file(mesh_path)
     except FileNotFoundError:
@@ -203,14 +247,15 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
         raise key_error(path, node, loc, f"{mesh_path}: {getattr(e, 'strerror', None) or e}") \
             from None
     try:
-        data = mesh_path.read_bytes()
-        declared = declared_triangles(data, mesh_format(mesh_path))
+        fmt = mesh_format(mesh_path)
+        declared = declared_triangles(mesh_path, fmt, stop_after=triangle_budget)
         if triangle_budget is not None and declared > triangle_budget:
+            least = " at least" if fmt in ("obj", "ply", "off") else ""  # polygons fanned
             raise key_error(path, node, loc,
-                            f"{mesh_path} declares {declared:,} triangles, more than the budget "
-                            f"of {triangle_budget:,} (an experiment may raise it with "
+                            f"{mesh_path} declares{least} {declared:,} triangles, more than the "
+                            f"budget of {triangle_budget:,} (an experiment may raise it with "
                             "triangle_budget:)")
-        return mesh_parts(mesh_path, obj.up, data).triangles
+        return mesh_parts(mesh_path, obj.up).triangles
     except (ValueError, OSError) as e:
         raise key_error(path, node, loc, f"cannot load mesh {mesh_path}: "
                                          f"{getattr(e, 'strerror', None) or e}") from None

@@ -13,7 +13,7 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Fi
 
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
 from .mesh_files import check_mesh
-from .yaml_source import ConfigError, check_name, format_validation_error, key_error, read_yaml
+from .yaml_source import check_name, key_error, read_yaml, validation_error
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Size = Annotated[float, Field(gt=0, le=MAX_COORDINATE)]
@@ -126,6 +126,12 @@ class Array(Strict):
 
 
 class Placed(Strict):
+    """Where an object goes. Its vertices, in its own frame (a shape centred at its origin; a
+    mesh file's own coordinates, never recentred, turned first so that the file's ``up`` is
+    +z), are scaled (``scale``), then rotated about x, then y, then z (``rotate``, degrees),
+    then moved (``translate``); ``array`` copies the result. ``shadowbench list --scene NAME``
+    prints each object's bounds as placed."""
+
     name: str | None = Field(None, min_length=1)  # what an object motion may call it
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate: Vec3 = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
@@ -204,9 +210,29 @@ class Lathe(Placed):
 
 
 class MeshFile(Placed):
+    """A mesh file: ``path`` relative to the scene file, or with ``package:`` (an installed
+    top-level Python package's import name) relative to that package's folder, so a scene may
+    use a file a package ships (``{shape: mesh, package: pymeshlab, path:
+    tests/sample_meshes/airplane.obj}``); the package is found, never imported."""
+
     shape: Literal["mesh"]
-    path: str  # .obj, .ply, .stl, .glb or .gltf, relative to the scene file
+    path: str  # .obj, .ply, .stl, .off, .glb or .gltf
     up: Literal["y", "z"] = "z"  # the file's up axis; a y-up file is turned so +y is +z
+    package: Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")] | None = None
+
+    @model_validator(mode="after")
+    def _inside_the_package(self):
+        if self.package is not None:
+            p = Path(self.path)
+            if p.is_absolute() or ".." in p.parts:
+                raise ValueError(f"path {self.path!r}: with package: it must be relative to the "
+                                 "package's folder, without '..'")
+        return self
+
+    @property
+    def label(self) -> str:
+        """How the file is named in the manifest and the rows: ``package:path`` or the path."""
+        return f"{self.package}:{self.path}" if self.package else self.path
 
 
 def _triangle_count(value):
@@ -422,7 +448,7 @@ def load_scenes(path: str | Path, *,
     try:
         scene_file = SceneFile.model_validate(data)
     except ValidationError as e:
-        raise ConfigError(format_validation_error(path, e, node)) from None
+        raise validation_error(path, e, node, model=SceneFile) from None
     for name, scene in scene_file.scenes.items():
         total = scene.family.triangles if scene.family else 0
         _within_budget(path, node, ("scenes", name, "family", "triangles"), total,

@@ -16,7 +16,13 @@ MAX_YAML_NODES = 1_000_000  # after aliases are expanded: a few alias levels can
 
 
 class ConfigError(Exception):
-    """Bad input: the message is one line naming file, key path and, where known, line."""
+    """Bad input: the message is one line naming file, key path and, where known, line.
+    ``more``: further problems of the same input, one line each (the command prints them
+    after the first)."""
+
+    def __init__(self, message: str, more: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.more = tuple(more)
 
 
 def check_name(kind: str, name: str) -> str:
@@ -68,13 +74,60 @@ def _clean_loc(loc: tuple, node) -> tuple:
     return tuple(out)
 
 
-def format_validation_error(path: Path, err: ValidationError, root_node, prefix=()) -> str:
-    first = err.errors()[0]
-    loc = _clean_loc(prefix + tuple(first["loc"]), root_node)
-    msg = first["msg"].removeprefix("Value error, ")
-    if first["type"] == "extra_forbidden":
-        msg = "unknown key"
-    elif first["type"] == "missing":
+MAX_LISTED_ERRORS = 5  # a file's errors listed, each with its line; the rest counted
+
+
+def _fields_at(model, loc: tuple) -> list[str]:
+    """The keys the schema allows at ``loc`` below ``model`` (a pydantic model class), walking
+    fields, dict values, list items and union members (pydantic's tags in ``loc`` name the
+    member); [] where the walk finds no model."""
+    import typing
+
+    from pydantic import BaseModel
+
+    def members(annotation) -> list:
+        origin = typing.get_origin(annotation)
+        if origin is typing.Annotated:
+            return members(typing.get_args(annotation)[0])
+        if origin is not None and origin not in (list, dict, tuple):  # a union
+            return [m for a in typing.get_args(annotation) for m in members(a)]
+        return [annotation]
+
+    candidates = [model]
+    for part in loc:
+        following = []
+        for c in candidates:
+            if isinstance(c, type) and issubclass(c, BaseModel):
+                field = c.model_fields.get(str(part))
+                if field is not None:
+                    following += members(field.annotation)
+                elif any(getattr(f.annotation, "__args__", ()) == (part,) for f in
+                         c.model_fields.values()):
+                    following.append(c)  # a union tag naming this member (shape: box)
+            elif typing.get_origin(c) in (list, tuple, dict):
+                args = typing.get_args(c)
+                following += members(args[-1] if args else None)
+        candidates = [c for c in following if c is not None] or [
+            c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)
+            and "[" in str(part)]  # pydantic's function-after[...] and the like
+    return sorted({name for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)
+                   for name in c.model_fields})
+
+
+def _error_line(path: Path, error: dict, root_node, prefix: tuple, allowed) -> tuple[int, str]:
+    """(sort key, "file:line: key.path: message") of one pydantic error. An unknown key comes
+    first, at its own line, with the closest key the schema allows there."""
+    import difflib
+
+    loc = _clean_loc(prefix + tuple(error["loc"]), root_node)
+    msg = error["msg"].removeprefix("Value error, ")
+    rank = 1
+    if error["type"] == "extra_forbidden":
+        rank, msg = 0, "unknown key"
+        close = difflib.get_close_matches(str(loc[-1]), allowed(error["loc"][:-1]), n=1)
+        if close:
+            msg += f"; did you mean `{close[0]}`?"
+    elif error["type"] == "missing":
         msg = "required key is missing"
     field, sep, rest = msg.partition(": ")
     path_in_model = field.split(".")
@@ -84,8 +137,22 @@ def format_validation_error(path: Path, err: ValidationError, root_node, prefix=
     keypath = ".".join(str(p) for p in loc)
     line = _line_of(root_node, loc)
     where = f"{path}:{line}" if line else str(path)
-    more = len(err.errors()) - 1
-    return f"{where}: {keypath}: {msg}" + (f" (and {more} more)" if more else "")
+    return rank, f"{where}: {keypath}: {msg}"
+
+
+def validation_error(path: Path, err: ValidationError, root_node, prefix=(),
+                     model=None) -> ConfigError:
+    """A ConfigError listing a file's validation errors, unknown keys first, each with its line
+    (up to ``MAX_LISTED_ERRORS``, then how many more); ``model``: the pydantic model validated,
+    for the keys an unknown key is compared with."""
+    def allowed(loc):
+        return _fields_at(model, loc) if model is not None else []
+
+    errors = [_error_line(path, e, root_node, prefix, allowed) for e in err.errors()]
+    lines = list(dict.fromkeys(text for _, text in sorted(errors, key=lambda e: e[0])))
+    more = len(lines) - MAX_LISTED_ERRORS
+    listed = lines[:MAX_LISTED_ERRORS] + ([f"(and {more} more)"] if more > 0 else [])
+    return ConfigError(listed[0], tuple(listed[1:]))
 
 
 _FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),

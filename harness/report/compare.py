@@ -1,13 +1,16 @@
 """``shadowbench compare A B``: the runs two results folders have in common, matched by scene,
-image size, technique and parameters, and what changed from A to B in time and in error.
+image size, technique and parameters, and what changed from A to B in time and in error. A run
+found in one folder only is paired with one of the other's of the same scene, size and technique
+(the one that differs in the fewest parameters), and shown with its changed parameters
+(``k: 16 → 4``) beside the same columns; what stays unpaired is listed by name.
 
 Time is worse when B's is more than ``factor`` times A's and, where both runs carry a timing
 interval (``time_ms_ci_low``/``high``), B's interval lies wholly above A's; an error metric is
 worse when it grew by more than ``tolerance`` of A's value (and by more than rounding); a run
 that was ok in A and is not in B is worse. Like ``asv compare``: exit 0, or 1 when something
-got worse. A folder that holds no shadowbench results of this version, two folders with no
-run in common, or two measured under different cost policies (their times hold different
-work) are bad input (:class:`ConfigError`, exit 2)."""
+got worse (a pair as a run in common). A folder that holds no shadowbench results of this
+version, two folders with no run in common and none to pair, or two measured under different
+cost policies (their times hold different work) are bad input (:class:`ConfigError`, exit 2)."""
 
 from __future__ import annotations
 
@@ -39,11 +42,19 @@ def load(folder: Path) -> pd.DataFrame:
 class Comparison:
     before: Path
     after: Path
-    rows: list[dict]  # one per run in common, worse first
-    only_before: int
-    only_after: int
+    rows: list[dict]  # one per run in common or pair, worse first; a pair's "changed" is set
+    only_before: list[str]  # the runs left unpaired, by name
+    only_after: list[str]
     factor: float
     tolerance: float
+
+    @property
+    def common(self) -> int:
+        return sum(not r["changed"] for r in self.rows)
+
+    @property
+    def paired(self) -> int:
+        return sum(bool(r["changed"]) for r in self.rows)
 
     @property
     def worse(self) -> int:
@@ -95,38 +106,88 @@ def compare(before: str | Path, after: str | Path, *, factor: float = 1.1,
         raise ConfigError(f"{before} (cost: {policy_a}) and {after} (cost: {policy_b}): "
                           "measured under different cost policies, their times hold different "
                           "work; compare folders of one policy")
-    matched = a.merge(b, on=KEY, suffixes=("_a", "_b"))
-    if matched.empty:
-        raise ConfigError(f"{before} and {after}: no run in common (same scene, image size, "
-                          "technique and parameters)")
-    rows = []
-    for _, m in matched.iterrows():
-        ra = {c[:-2]: m[c] for c in m.index if c.endswith("_a")}
-        rb = {c[:-2]: m[c] for c in m.index if c.endswith("_b")}
-        changes = {}
-        if ra["status"] == "ok" and rb["status"] != "ok":
-            changes["status"] = "worse"
-        elif ra["status"] != "ok" and rb["status"] == "ok":
-            changes["status"] = "better"
-        time_verdict, ratio = time_change(ra, rb, factor)
-        changes["time_ms"] = time_verdict
-        for metric in ERRORS:
-            changes[metric] = error_change(_value(ra, metric), _value(rb, metric), tolerance)
-        verdicts = set(changes.values())
-        verdict = "worse" if "worse" in verdicts else "better" if "better" in verdicts else "same"
-        rows.append({
-            "scene": m["scene"], "size": f"{int(m['width'])}x{int(m['height'])}",
-            "technique": m["technique"],
-            "params": ", ".join(f"{k}={v}" for k, v in json.loads(m["params_key"]).items()),
-            "status": (ra["status"], rb["status"]), "ratio": ratio, "verdict": verdict,
-            "changes": changes,
-            "time": [(number(r.get("time_ms")), _interval(r)) for r in (ra, rb)],
-            "errors": {metric: (_value(ra, metric), _value(rb, metric)) for metric in ERRORS}})
-    order = {"worse": 0, "better": 1, "same": 2}
-    rows.sort(key=lambda r: (order[r["verdict"]], r["scene"], r["size"], r["technique"]))
     keys_a, keys_b = set(map(tuple, a[KEY].values)), set(map(tuple, b[KEY].values))
-    return Comparison(before, after, rows, len(keys_a - keys_b), len(keys_b - keys_a),
-                      factor, tolerance)
+    only_a = a[[k not in keys_b for k in map(tuple, a[KEY].values)]]
+    only_b = b[[k not in keys_a for k in map(tuple, b[KEY].values)]]
+    matches = _common(a, b)
+    pairs, left_a, left_b = pair_changed(only_a, only_b)
+    if not matches and not pairs:
+        raise ConfigError(f"{before} and {after}: no run in common (same scene, image size, "
+                          "technique and parameters) and none to pair (same scene, image size "
+                          "and technique)")
+    rows = [_row(ra, rb, factor, tolerance) for ra, rb in matches + pairs]
+    order = {"worse": 0, "better": 1, "same": 2}
+    rows.sort(key=lambda r: (order[r["verdict"]], r["scene"], r["size"], r["technique"],
+                             r["params"]))
+    return Comparison(before, after, rows, [run_name(r) for r in left_a],
+                      [run_name(r) for r in left_b], factor, tolerance)
+
+
+def _common(a, b) -> list[tuple[dict, dict]]:
+    """(A's row, B's row) of each run in both folders (equal on KEY)."""
+    in_b = {tuple(k): r for k, r in zip(b[KEY].values, b.to_dict("records"))}
+    return [(r, in_b[tuple(k)]) for k, r in zip(a[KEY].values, a.to_dict("records"))
+            if tuple(k) in in_b]
+
+
+def _params(row) -> dict:
+    return json.loads(row["params_key"])
+
+
+def changed_params(ra, rb) -> dict[str, tuple]:
+    """{parameter: (value in A, value in B)} for the parameters that differ."""
+    pa, pb = _params(ra), _params(rb)
+    return {k: (pa.get(k), pb.get(k)) for k in sorted(set(pa) | set(pb)) if pa.get(k) != pb.get(k)}
+
+
+def pair_changed(only_a, only_b) -> tuple[list[tuple[dict, dict]], list[dict], list[dict]]:
+    """Runs of one folder only, paired with the other's of the same scene, size and technique:
+    the pairs that differ in the fewest parameters first, each run in one pair at most. Returns
+    (pairs, A's runs left, B's runs left)."""
+    group = ["scene", "width", "height", "technique"]
+    runs_a, runs_b = only_a.to_dict("records"), only_b.to_dict("records")
+    candidates = sorted(
+        (len(changed_params(ra, rb)), i, j) for i, ra in enumerate(runs_a)
+        for j, rb in enumerate(runs_b) if all(ra[k] == rb[k] for k in group))
+    used_a, used_b, pairs = set(), set(), []
+    for _, i, j in candidates:
+        if i not in used_a and j not in used_b:
+            used_a.add(i)
+            used_b.add(j)
+            pairs.append((runs_a[i], runs_b[j]))
+    return (pairs, [r for i, r in enumerate(runs_a) if i not in used_a],
+            [r for j, r in enumerate(runs_b) if j not in used_b])
+
+
+def run_name(row) -> str:
+    """``scene 512x512 pcf k=16, res=1024``: a run as the listing names it."""
+    params = ", ".join(f"{k}={v}" for k, v in _params(row).items())
+    return f"{row['scene']} {int(row['width'])}x{int(row['height'])} {row['technique']} {params}"
+
+
+def _row(ra: dict, rb: dict, factor: float, tolerance: float) -> dict:
+    """One line of the comparison: a run in common, or a pair with its changed parameters."""
+    changes = {}
+    if ra["status"] == "ok" and rb["status"] != "ok":
+        changes["status"] = "worse"
+    elif ra["status"] != "ok" and rb["status"] == "ok":
+        changes["status"] = "better"
+    time_verdict, ratio = time_change(ra, rb, factor)
+    changes["time_ms"] = time_verdict
+    for metric in ERRORS:
+        changes[metric] = error_change(_value(ra, metric), _value(rb, metric), tolerance)
+    verdicts = set(changes.values())
+    verdict = "worse" if "worse" in verdicts else "better" if "better" in verdicts else "same"
+    changed = changed_params(ra, rb)
+    return {
+        "scene": ra["scene"], "size": f"{int(ra['width'])}x{int(ra['height'])}",
+        "technique": ra["technique"],
+        "params": ", ".join(f"{k}={v}" for k, v in _params(rb).items() if k not in changed),
+        "changed": ", ".join(f"{k}: {x} → {y}" for k, (x, y) in changed.items()),
+        "status": (ra["status"], rb["status"]), "ratio": ratio, "verdict": verdict,
+        "changes": changes,
+        "time": [(number(r.get("time_ms")), _interval(r)) for r in (ra, rb)],
+        "errors": {metric: (_value(ra, metric), _value(rb, metric)) for metric in ERRORS}}
 
 
 MARK = {"worse": "+", "better": "-", "same": " "}
@@ -141,7 +202,7 @@ def _time_text(value: float | None, interval) -> str:
 def text(c: Comparison, *, only_changed: bool = False) -> str:
     """The comparison as a plain table (``+`` worse, ``-`` better), then a summary line."""
     head = ["", "scene", "size", "technique", "time_ms before", "after", "ratio"] + [
-        f"{m} before → after" for m in ERRORS] + ["parameters"]
+        f"{m} before → after" for m in ERRORS] + ["parameters (changed: before → after)"]
     lines = [head]
     for r in c.rows:
         if only_changed and r["verdict"] == "same":
@@ -152,17 +213,24 @@ def text(c: Comparison, *, only_changed: bool = False) -> str:
                       f"{r['ratio']:.2f}" if r["ratio"] else "–"]
                      + [f"{shown(x) or '–'} → {shown(y) or '–'}" + (
                          " *" if r["changes"][m] != "same" else "")
-                        for m, (x, y) in r["errors"].items()] + [r["params"]])
+                        for m, (x, y) in r["errors"].items()]
+                     + ["; ".join(filter(None, [r["changed"] and f"changed {r['changed']}",
+                                                r["params"]]))])
     widths = [max(len(row[i]) for row in lines) for i in range(len(head) - 1)]
     out = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)) + "  " + row[-1]
            for row in lines]
+    for where, names in ((c.before, c.only_before), (c.after, c.only_after)):
+        if names:
+            out.append(f"only in {where}, unpaired:")
+            out += [f"  {name}" for name in names]
     out.append(summary(c))
     return "\n".join(line.rstrip() for line in out)
 
 
 def summary(c: Comparison) -> str:
-    return (f"{len(c.rows)} runs in common ({c.only_before} only in {c.before}, {c.only_after} "
-            f"only in {c.after}): {c.worse} worse, {c.better} better (time beyond {c.factor:g}x "
+    return (f"{c.common} runs in common, {c.paired} paired with changed parameters "
+            f"({len(c.only_before)} unpaired only in {c.before}, {len(c.only_after)} only in "
+            f"{c.after}): {c.worse} worse, {c.better} better (time beyond {c.factor:g}x "
             f"and its interval, errors beyond {c.tolerance:.0%})")
 
 

@@ -2,7 +2,8 @@
 scene of its own): per family, each technique's cost at equal error and at its defaults against
 triangles (log-log), the exponents of its cost (:func:`harness.scaling.scaling`), the
 cost-accuracy fronts per size, and the crossover table (:func:`harness.scaling.crossover`): each
-technique against the baseline, and sv against sm."""
+technique against the baseline. A family run at one size gets no exponent: the view says that a
+fit needs two sizes or more."""
 
 from __future__ import annotations
 
@@ -14,7 +15,6 @@ from . import plots
 LEVEL = 1.5  # equal error: edge_mae within 1.5 x edge_floor, the level of the scenes' picks
 EXPONENT_METRICS = {"time_ms": "time", "frags_shadow": "shadow fragments",
                     "vertex_invocations": "vertex invocations"}
-PAIRS_ALSO = (("sv", "sm"), ("ptsv", "sv"))  # besides each technique against the baseline
 
 
 def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict | None:
@@ -31,7 +31,14 @@ def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict |
             "fronts": [{"title": title, "id": f"scale-front-{i}", "chart": front_chart(g, colours)}
                        for i, (title, g) in enumerate(titled)],
             "crossovers": crossover_rows(titled, baseline), "baseline": baseline,
-            "metrics": list(EXPONENT_METRICS.values())}
+            "metrics": list(EXPONENT_METRICS.values()), "one_size": one_size_families(rows)}
+
+
+def one_size_families(rows) -> list[dict]:
+    """The families whose runs hold one triangle count (no exponent can be fitted), with it."""
+    counts = rows.groupby("family", sort=True)["triangles"]
+    return [{"family": family, "triangles": triangles_label(t.iloc[0])}
+            for family, t in counts if t.nunique() < 2]
 
 
 def triangles_label(triangles: float) -> str:
@@ -145,7 +152,6 @@ def crossover_rows(titled, baseline: str | None) -> list[dict]:
     for title, g in titled:
         present = set(g["technique"])
         pairs = [(t, baseline) for t in sorted(present) if baseline in present and t != baseline]
-        pairs += [p for p in PAIRS_ALSO if set(p) <= present and p not in pairs]
         for a, b in pairs:
             costs = scaling.equal_error_costs(g, a, b, level=LEVEL)
             crossing = scaling.crossover(g, a, b, level=LEVEL)

@@ -33,7 +33,7 @@ def read_results(folder: Path):
     if not path.is_file():
         raise ConfigError(f"{folder}: no {results.RESULTS_FILE} here (not a results folder)")
     try:
-        rows = results.load(folder)
+        rows = results.load(folder, stale="flag")  # analysis.current leaves out the old
     except (OSError, ValueError, pd.errors.ParserError) as e:
         raise ConfigError(f"{path}: cannot be read as results ({type(e).__name__})") from None
     missing = sorted(REQUIRED - set(rows.columns))

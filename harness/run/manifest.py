@@ -79,14 +79,15 @@ def _git_dirty() -> bool | None:
 
 def _meshes(scene) -> list[dict]:
     """Each mesh file of the scene as built: its triangles, parts (open ones: not closed),
-    and the zero-area triangles dropped from it."""
+    the zero-area triangles dropped from it, and what it holds that defines no triangle,
+    skipped and counted by kind (harness.config.mesh_obj)."""
     out = []
     for obj in scene.config.objects:
         if isinstance(obj, cfg.MeshFile):
             parts = cfg.mesh_parts(cfg.resolve_mesh_path(scene.source or Path("."), obj), obj.up)
-            out.append({"path": obj.path, "triangles": parts.triangles, "parts": len(parts.names),
+            out.append({"path": obj.label, "triangles": parts.triangles, "parts": len(parts.names),
                         "open_parts": parts.closed.count(False),
-                        "degenerate_dropped": parts.dropped})
+                        "degenerate_dropped": parts.dropped, "skipped": dict(parts.skipped)})
     return out
 
 

@@ -116,6 +116,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             scene_file = str(exp_path.parent / exp.scene_file)
         exp_text = exp_path.read_text()
     registered = registry.techniques()
+    registry.baseline()  # two declared baselines: one line naming both, before anything else
+    broken = registry.broken()
     if not experiment_path:
         exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
         node, exp_path, exp_text = None, Path("(command line)"), ""
@@ -150,12 +152,16 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
               else {name: cfg.Grid(curve=True) for name in registered}
               if exp.techniques == "curves" else exp.techniques)
     for name, g in chosen.items():
+        if name in broken:
+            raise cfg.key_error(exp_path, node, ("techniques", name), f"broken: {broken[name]}")
         if name not in registered:
             raise cfg.key_error(exp_path, node, ("techniques", name),
                                 f"unknown technique; registered: {', '.join(registered)}")
         grids[name] = g if isinstance(g, list) else [g]
     if techniques:
         for name in techniques:
+            if name in broken:
+                raise cfg.ConfigError(f"--techniques: {name} is broken: {broken[name]}")
             if name not in registered:
                 raise cfg.ConfigError(f"--techniques: unknown technique {name!r}; registered: "
                                       f"{', '.join(registered)}")
@@ -186,31 +192,21 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                          for i, grid in enumerate(items)]
         return out
 
-    planned = len(exp.resolutions or [None]) * sum(
+    # a grid's raw count first (a product of long lists can stand for billions), then the
+    # points themselves, validated, with duplicates merged (a curve's knobs share their base)
+    raw = len(exp.resolutions or [None]) * sum(
         len(grid_points(registered[tech], grid, loc, exp_path, node))
         if grid.curve is not None else grid.count()
         for scene_name in wanted_scenes
         for tech, tech_grids in scene_grids(scene_name).items() for grid, loc in tech_grids)
-    if planned > exp.max_runs:
-        raise cfg.ConfigError(f"{exp_path}: plans {planned:,} runs, more than the limit of "
-                              f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
-                              "or --max-runs on the command line")
-    if exp.cost == "static":
-        _check_static(wanted_scenes, all_scenes, exp_path, node,
-                      from_option=bool(timing and timing.get("cost")))
-    built = {name: build_scene(name, all_scenes[name], Path(scene_file))
-             for name in wanted_scenes}
-    runs: list[RunSpec] = []
-    seen: set[str] = set()
+    if raw > max(4 * exp.max_runs, 10_000):
+        raise cfg.ConfigError(f"{exp_path}: plans {raw:,} runs before duplicate points are merged, "
+                              f"far more than the limit of {exp.max_runs:,}; raise it with "
+                              "max_runs: in the experiment or --max-runs on the command line")
+    points: dict[tuple, None] = {}
     for scene_name in wanted_scenes:
-        base = built[scene_name]
-        own = settings.get(scene_name, (cfg.SceneSettings(), ()))[0]
-        scene_frames = exp.frames if own.frames is None else own.frames
-        scene_warmup = exp.warmup if own.warmup is None else own.warmup
-        for width, height in exp.resolutions or [base.config.resolution]:
-            scene_at = base.with_resolution(width, height)
+        for width, height in exp.resolutions or [all_scenes[scene_name].resolution]:
             for tech, tech_grids in scene_grids(scene_name).items():
-                version = registered[tech].code_version()
                 for grid, grid_loc in tech_grids:
                     for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
                                                   node):
@@ -219,19 +215,46 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                                  + ".".join(map(str, loc)))
                         params = validate_params(tech, {**combo, **overrides.get(tech, {})},
                                                  where if experiment_path else "--set")
-                        # a moving scene's run measures each frame of its sequence once
-                        frames = scene_at.frames if scene_at.frames > 1 else scene_frames
-                        spec = RunSpec(scene_name, tech, params, width, height, frames,
-                                       scene_warmup, exp.reference.samples, exp.reference.seed,
-                                       scene_at.key, version, exp.statistics, exp.cost)
-                        if spec.run_id not in seen:
-                            seen.add(spec.run_id)
-                            runs.append(spec)
+                        points[scene_name, width, height, tech,
+                               json.dumps(params, sort_keys=True)] = None
+    if len(points) > exp.max_runs:
+        raise cfg.ConfigError(f"{exp_path}: plans {len(points):,} runs, more than the limit of "
+                              f"{exp.max_runs:,}; raise it with max_runs: in the experiment "
+                              "or --max-runs on the command line")
+    if exp.cost == "static":
+        _check_static(wanted_scenes, all_scenes, exp_path, node,
+                      from_option=bool(timing and timing.get("cost")))
+    built = {name: build_scene(name, all_scenes[name], Path(scene_file))
+             for name in wanted_scenes}
+    versions = {tech: registered[tech].code_version() for tech in grids}
+    runs: list[RunSpec] = []
+    for scene_name, width, height, tech, params_json in points:
+        own = settings.get(scene_name, (cfg.SceneSettings(), ()))[0]
+        scene_at = built[scene_name].with_resolution(width, height)
+        # a moving scene's run measures each frame of its sequence once
+        frames = (scene_at.frames if scene_at.frames > 1
+                  else exp.frames if own.frames is None else own.frames)
+        runs.append(RunSpec(scene_name, tech, json.loads(params_json), width, height, frames,
+                            exp.warmup if own.warmup is None else own.warmup,
+                            exp.reference.samples, exp.reference.seed, scene_at.key,
+                            versions[tech], exp.statistics, exp.cost))
     if not runs:
         raise cfg.ConfigError(f"{exp_path}: nothing to run (no scene x technique combination)")
     exp_hash = hashlib.sha256(
         (exp_text + json.dumps(sorted(r.run_id for r in runs))).encode()).hexdigest()[:16]
-    return Plan(runs, built, exp_hash, str(exp_path), cost=exp.cost)
+    return Plan(runs, built, exp_hash, str(exp_path), cost=exp.cost,
+                notes=_notes(list(grids), broken if not techniques and (
+                    not experiment_path or exp.techniques in ("all", "curves")) else {}))
+
+
+def _notes(included: list[str], broken: dict[str, str]) -> list[str]:
+    """What a user should know of the plan's techniques: the installed plugins it includes (a
+    sweep of every technique takes in every installed one), on one line, and the broken entry
+    points it leaves out, each with the reason."""
+    plugins = [f"{name} ({registry.distribution_of(name)})" for name in included
+               if registry.distribution_of(name) != registry.OWN_DISTRIBUTION]
+    notes = [f"installed plugins in this plan: {', '.join(plugins)}"] if plugins else []
+    return notes + [f"left out, broken: {name}: {why}" for name, why in broken.items()]
 
 
 def _check_static(names: list[str], scenes: dict, exp_path: Path, node, from_option: bool):

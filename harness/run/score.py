@@ -23,7 +23,7 @@ def one_line(e: BaseException) -> str:
 def _run_columns(spec: RunSpec) -> dict:
     return {"run_id": spec.run_id, "schema": results.SCHEMA_VERSION, "scene": spec.scene,
             "technique": spec.technique, "params": spec.params_json, "width": spec.width,
-            "height": spec.height, "res": spec.params.get("res"), "frames": spec.frames,
+            "height": spec.height, "map_res": spec.params.get("res"), "frames": spec.frames,
             "code_version": spec.code_version, "ref_samples": spec.samples,
             "cost": spec.cost}
 
@@ -69,7 +69,7 @@ def _timing_columns(timed) -> dict:
 def _cost_columns(timed, frame) -> dict:
     """Timing, counters, fill, memory and the range of V, from the run's last frame, and the
     scene's family (empty for a scene of objects) and counts (triangles, parts, open parts,
-    shadow edges from that frame's light)."""
+    shadow edges from that frame's light), and what its mesh files skipped."""
     row, output = timed.row, timed.output
     v = output.visibility
     family = frame.scene.config.family
@@ -84,6 +84,7 @@ def _cost_columns(timed, frame) -> dict:
         nonfinite=output.nonfinite + metrics.nonfinite(v),
         v_min=float(np.nanmin(v)) if v.size else None,
         v_max=float(np.nanmax(v)) if v.size else None,
+        mesh_notes=frame.scene.mesh_notes,
         warnings="; ".join(output.warnings + ([row["warnings"]] if "warnings" in row else [])),
     )
     columns["gpu_estimate_ms"] = cost_model.estimate_ms({**row, **columns})

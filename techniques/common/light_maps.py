@@ -155,6 +155,7 @@ class Sampling:
     bias_min: float = 0.0  # constant bias drawn per sample, scene units
     bias_max: float = 0.0
     slope_bias: float = 1.0  # times the receiver plane's slope x each read's distance
+    receiver_plane: bool = False  # the signed plane's depth at each read, not its bound
     normal_offset: float = 0.0  # texels' world size x sin(light angle) along the normal
     window: tuple[int, int] = (0, 0)  # a texel's depths come from offsets window[0]..window[1]
 
@@ -262,6 +263,6 @@ def sampling_uniforms(frame: Frame, sampling: Sampling) -> dict:
     return dict(**camera_rays(frame), grid_n=s.grid_n, footprint_region=s.footprint_region,
                 res_factor=s.res_factor, min_size=s.min_size, spacing=s.spacing,
                 bias_min=s.bias_min, bias_max=s.bias_max, normal_offset=s.normal_offset,
-                jitter=s.jitter,
+                receiver_plane=s.receiver_plane, jitter=s.jitter,
                 window_low=np.full(2, float(s.window[0])),
                 window_high=np.full(2, float(s.window[1])), seed=np.uint32(s.seed))

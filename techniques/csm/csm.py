@@ -126,6 +126,7 @@ _Params = create_model(
     stabilize=(bool, False),
     bias=(float, Field(0.02, ge=0)),
     slope_bias=(float, Field(1.0, ge=0)),
+    receiver_plane=(bool, False),
     normal_offset=(float, Field(0.0, ge=0)),
 )
 
@@ -167,6 +168,9 @@ class CascadedShadowMap(Technique):
     ``bias``           constant depth bias, scene units                  0.02      >= 0
     ``slope_bias``     times the receiver plane's depth slope x the      1.0       >= 0
                        distance to the texel read, texels
+    ``receiver_plane`` the slope term signed: the read compared with     false     true, false
+                       the receiver plane's depth at its texel
+                       (Isidoro 2006), not the bound
     ``normal_offset``  moves the point along its light-facing normal     0.0       >= 0
                        before the read: this many x the texel's world
                        size in the pixel's cascade x sin(the light's
@@ -270,7 +274,7 @@ class CascadedShadowMap(Technique):
             self.shading.set(**uniforms, cascades=len(self.cascades), cascade_res=float(p.res),
                              camera_view=frame.camera.view, bias=p.bias,
                              slope_bias=p.slope_bias, normal_offset=p.normal_offset,
-                             depth_precision=precision)
+                             receiver_plane=p.receiver_plane, depth_precision=precision)
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps), fetches_per_px=1,
                             nonfinite=sum(m.nonfinite for m in self.maps),

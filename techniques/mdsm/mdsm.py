@@ -128,6 +128,9 @@ class MultipleDepthShadowMap(Technique):
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      >= 0
                        distance to the farthest texel a depth may come
                        from
+    ``receiver_plane`` the slope term signed: each read compared with    false    true, false
+                       the receiver plane's depth, the largest over its
+                       window (Isidoro 2006), not the bound
     ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
@@ -154,6 +157,7 @@ class MultipleDepthShadowMap(Technique):
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        receiver_plane: bool = False
         normal_offset: float = Field(0.0, ge=0)
 
         @field_validator("n", "k", "q", mode="wrap")
@@ -217,6 +221,7 @@ class MultipleDepthShadowMap(Technique):
         self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
                                           bias_max=p.bias, slope_bias=p.slope_bias,
                                           normal_offset=p.normal_offset,
+                                          receiver_plane=p.receiver_plane,
                                           window=self.selection.window if self.selection else (0, 0)),
                           texture=self.selection.texture if self.selection else None)
         q = p.q if self.selection else 0

@@ -60,6 +60,9 @@ class PercentageCloserFiltering(Technique):
     ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       >= bias_min
     ``slope_bias``     times the receiver plane's depth slope x each    1.0        >= 0
                        sample's distance to its texel, texels
+    ``receiver_plane`` the slope term signed: each sample compared      false      true, false
+                       with the receiver plane's depth at its texel
+                       (Isidoro 2006), not the bound |g| x distance
     ``normal_offset``  moves the point along its light-facing normal    0.0        >= 0
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
@@ -85,6 +88,7 @@ class PercentageCloserFiltering(Technique):
         bias_min: float = Field(0.02, ge=0)
         bias_max: float = Field(0.04, ge=0)
         slope_bias: float = Field(1.0, ge=0)
+        receiver_plane: bool = False
         normal_offset: float = Field(0.0, ge=0)
         seed: int = Field(0, ge=0, lt=2**32)
 
@@ -106,7 +110,8 @@ class PercentageCloserFiltering(Technique):
             grid_n=math.isqrt(p.k), footprint_region=p.region == "footprint",
             res_factor=p.res_factor, min_size=p.min_size, spacing=p.res_factor,
             jitter=p.sampling == "jitter", seed=p.seed, bias_min=p.bias_min,
-            bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset))
+            bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset,
+            receiver_plane=p.receiver_plane))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=p.k,
                             nonfinite=self.passes.map.nonfinite)
 

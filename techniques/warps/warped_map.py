@@ -64,6 +64,9 @@ PARAMETER_TABLE = """
     ``slope_bias``     times the receiver plane's depth slope x each     1.0      >= 0
                        read's distance, in the warped map's texels
                        (shadow_map.glsl)
+    ``receiver_plane`` the slope term signed: each read compared with    false    true, false
+                       the receiver plane's depth at its texel
+                       (Isidoro 2006), not the bound
     ``normal_offset``  moves the point along its light-facing normal     0.0      >= 0
                        before its reads: this many x the warped map's
                        texel's world size there x sin(the light's angle)
@@ -76,6 +79,7 @@ class WarpParams(TechniqueParams):
     res: int = Field(1024, ge=16, le=8192)
     bias: float = Field(0.02, ge=0)
     slope_bias: float = Field(1.0, ge=0)
+    receiver_plane: bool = False
     normal_offset: float = Field(0.0, ge=0)
     k: SquareInt = Field(1, le=49)
 
@@ -152,7 +156,8 @@ class WarpedShadowMap(Technique):
             self.shading.use()
             unit = frame.bind_gbuffer(self.shading)
             self.shading.set(**self.map.lookup_uniforms(unit, p.slope_bias, frame),
-                             grid_n=math.isqrt(p.k), bias=p.bias, normal_offset=p.normal_offset)
+                             grid_n=math.isqrt(p.k), bias=p.bias, normal_offset=p.normal_offset,
+                             receiver_plane=p.receiver_plane)
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         warnings = []
         if self.columns["outside_pct"] > 0:

@@ -1,4 +1,4 @@
-"""The layer contract of DESIGN.md, declared in pyproject.toml, checked by import-linter."""
+"""The layer contract of docs/architecture.md, declared in pyproject.toml, checked by import-linter."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from helpers import result_rows
 from harness import cli, registry
 from harness.technique import Technique, TechniqueParams
 
-REQUIRED = ("scene technique params width height res time_ms time_ms_min time_ms_max frames "
+REQUIRED = ("scene technique params width height map_res time_ms time_ms_min time_ms_max frames "
             "frags_scene frags_shadow overdraw mem_bytes fetches_per_px mae rmse wrong_pct "
             "edge_mae ssim psnr flip levels nonfinite renderer status error array").split()
 METRICS = "mae rmse wrong_pct edge_mae ssim psnr levels time_ms".split()

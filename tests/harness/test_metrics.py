@@ -42,10 +42,11 @@ def test_edge_band_of_a_vertical_edge():
 
 
 def test_edge_mae_default_band_is_two_pixels_either_side():
-    """DESIGN's edge band is 2 px, and papers/gmnpr.py scores its near region with edge_mae's
-    default. Catches that default changed to 1 px (the 1-px band, columns 3..6, would give
-    2.5 / 40 = 0.0625). By hand: boundary columns 4 and 5, within 2 px (Chebyshev) columns
-    2..7, 60 pixels; errors 0.5 in column 2 and 0.25 in column 6, 10 rows each."""
+    """The edge band of edge_mae is 2 px (docs/results.md), and papers/gmnpr.py scores its near
+    region with edge_mae's default. Catches that default changed to 1 px (the 1-px band,
+    columns 3..6, would give 2.5 / 40 = 0.0625). By hand: boundary columns 4 and 5, within 2 px
+    (Chebyshev) columns 2..7, 60 pixels; errors 0.5 in column 2 and 0.25 in column 6, 10 rows
+    each."""
     ref = np.ones((10, 10))
     ref[:, :5] = 0.0
     v = ref.copy()

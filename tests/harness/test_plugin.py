@@ -2,8 +2,6 @@
 and found through the entry point alone."""
 
 import csv
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -24,33 +22,14 @@ warmup: 0
 
 
 @pytest.fixture(scope="module")
-def plugin_env(tmp_path_factory):
-    """The environment of a shell in which the example plugin is installed: built offline from
-    a copy of examples/plugin (a build writes beside its sources; the repository stays as it
-    was) into a folder put first on PYTHONPATH.
-
-    setuptools builds it, with its own build_py and egg_info rather than through pip: the
-    setuptools of Python 3.11's venv (65.5) builds a wheel only with the separate ``wheel``
-    package, which is not installed, and pip has no other way to build offline. The installed
-    files are the same, and importlib.metadata reads the egg-info's entry_points.txt as it
-    reads a wheel's dist-info."""
-    pytest.importorskip("setuptools")
-    work = tmp_path_factory.mktemp("plugin")
-    source, site = work / "source", work / "site"
-    shutil.copytree(PLUGIN, source)
-    build = subprocess.run([sys.executable, "-c", "from setuptools import setup; setup()",
-                            "-q", "build_py", "--build-lib", str(site),
-                            "egg_info", "--egg-base", str(site)],
-                           cwd=source, capture_output=True, text=True, timeout=120)
-    assert build.returncode == 0, build.stderr
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(site), env.get("PYTHONPATH")]))
-    return env
+def hwpcf_env(plugin_env):
+    """A shell's environment with examples/plugin installed (conftest's ``plugin_env``)."""
+    return plugin_env(PLUGIN)
 
 
-def test_the_installed_plugin_is_listed_with_its_parameters(plugin_env, tmp_path):
+def test_the_installed_plugin_is_listed_with_its_parameters(hwpcf_env, tmp_path):
     listed = subprocess.run([str(SHADOWBENCH), "list", "--scene-file", str(ROOT / "scenes.yaml")],
-                            env=plugin_env, cwd=tmp_path, capture_output=True, text=True,
+                            env=hwpcf_env, cwd=tmp_path, capture_output=True, text=True,
                             timeout=120)
     assert listed.returncode == 0, listed.stderr
     lines = listed.stdout.splitlines()
@@ -65,7 +44,7 @@ def test_the_installed_plugin_is_listed_with_its_parameters(plugin_env, tmp_path
     assert "hwpcf" not in bare.stdout
 
 
-def test_a_run_scores_the_plugin_beside_sm(plugin_env, tmp_path):
+def test_a_run_scores_the_plugin_beside_sm(hwpcf_env, tmp_path):
     """box_plane at 128 px with map 1024: a map texel is about 1/6 of a pixel, so hwpcf's
     one-texel ramp at an edge lies inside the edge pixel and both it and sm answer the pixel
     centre's visibility. Their error is then what any point sample misses of the reference's
@@ -80,7 +59,7 @@ def test_a_run_scores_the_plugin_beside_sm(plugin_env, tmp_path):
     out = tmp_path / "out"
     run = subprocess.run([str(SHADOWBENCH), "run", str(experiment), "--scene-file",
                           str(ROOT / "scenes.yaml"), "--out", str(out)],
-                         env=plugin_env, cwd=tmp_path, capture_output=True, text=True,
+                         env=hwpcf_env, cwd=tmp_path, capture_output=True, text=True,
                          timeout=300)
     assert run.returncode == 0, run.stderr
     with (out / "results.csv").open() as f:

@@ -17,6 +17,10 @@ SHIPPED = ("sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long
            "silhouette_hard", "camera_in_shadow", "jeep")
 MAPS = (256, 1024, 4096)
 FILTERED = ("pcf", "mdsm", "silhouette")
+# the real corpus (issue 32: files shipped in packages), at its own 512 x 384 and one map size,
+# the one issue 32's table was measured at: 16 runs, about 15 s more
+CORPUS = ("real_airplane", "real_airplane_spot", "real_plates", "real_plates_spot")
+CORPUS_MAP = 1024
 
 # The runs that miss the issue's bar at the defaults, and why. No other default serves them
 # without breaking others (measured): slope_bias 0.5 puts pcf's acne above 1 % at map 1024 on
@@ -33,7 +37,13 @@ WINDOW = ("MDSM's extra depths come from the q-texel window, so its soft edge re
 TERRAIN = ("terrain_long puts an 840-unit plane in one map: texels of 17-270 pixels near the "
            "camera and sub-texel boxes; sm misses the bar too (acne 1.2 % at map 1024), this "
            "is the warps' scene")
+PLATES = ("real_plates' stacked thin plates under a grazing sun: MDSM leaks 0.63 % (sm 0.02 %); "
+          "with no slope term still 0.37 % (and 58 % acne), with one depth per cell (n 1) "
+          "0.15 %, with the 2 x 2 window (q 4) 0.37 %: most of it is the extra depth the "
+          "9-texel window selects (the max of the window behind a thin plate's edge), Pagot "
+          "et al.'s method, not the bias; receiver_plane takes 0.14 off at 0.28 % acne")
 EXCEPTIONS = {
+    ("real_plates", CORPUS_MAP, "mdsm"): PLATES,
     **{("terrain_long", res, t): TERRAIN for res in MAPS for t in FILTERED},
     **{(s, 256, "pcf"): RESOLUTION
        for s in ("camera_in_shadow", "castle", "crowd", "jeep", "pins", "silhouette_hard")},
@@ -53,13 +63,13 @@ def fair_runs(gl_context, scene_at):
     from harness.technique import Frame, reset_gl_state
 
     runs = {}
-    for name in SHIPPED:
-        scene = scene_at(name, 512)
+    for name in SHIPPED + CORPUS:
+        scene = scene_at(name, 512, 384 if name in CORPUS else 512)
         reference = compute_reference(scene, samples=16)
         frame = Frame(scene)
         mask = frame.compared_pixels(reference.covered)
         try:
-            for res in MAPS:
+            for res in (CORPUS_MAP,) if name in CORPUS else MAPS:
                 for technique in ("sm", *FILTERED):
                     cls = registry.get(technique)
                     run = cls(cls.Params(res=res))
@@ -78,17 +88,19 @@ def fair_runs(gl_context, scene_at):
 
 
 @pytest.mark.parametrize("technique", FILTERED)
-@pytest.mark.parametrize("res", MAPS)
-@pytest.mark.parametrize("scene_name", SHIPPED)
+@pytest.mark.parametrize("scene_name, res", [(s, r) for s in SHIPPED for r in MAPS]
+                         + [(s, CORPUS_MAP) for s in CORPUS])
 def test_defaults_leave_no_acne_and_no_leak_beyond_sm(fair_runs, scene_name, res, technique):
     """Issue 12: at its defaults a technique shows acne_pct <= 0.1 and leak_pct <= sm's + 0.1
-    on every shipped scene and map size. EXCEPTIONS lists where that cannot hold and why; an
+    on every shipped scene and map size; issue 32: <= 0.3 and sm's + 0.3 on the real corpus at
+    map 1024. EXCEPTIONS lists where that cannot hold and why; an
     exception that starts meeting the bar fails here too, so the list stays true. Catches a
     slope term lost or too small (pcf at 1024 on castle, crowd, jeep: acne; silhouette on the
     box face), or too large (leaks beyond sm's)."""
     acne, leak = fair_runs[scene_name, res, technique]
     sm_leak = fair_runs[scene_name, res, "sm"][1]
-    meets = acne <= 0.1 and leak <= sm_leak + 0.1
+    bar = 0.3 if scene_name in CORPUS else 0.1  # issue 32's target on real files
+    meets = acne <= bar and leak <= sm_leak + bar
     reason = EXCEPTIONS.get((scene_name, res, technique))
     if reason is None:
         assert meets, f"acne {acne:.3f} %, leak {leak:.3f} % (sm {sm_leak:.3f} %)"

@@ -113,9 +113,11 @@ def test_scenes_outside_the_experiment_are_an_error(tmp_path, capsys):
 def test_bad_quality_knob_declaration_exits_2_naming_technique_and_key(
         tmp_path, capsys, monkeypatch, technique, knobs, message):
     """A technique declaring a knob that is not a parameter, an empty curve or a value its
-    Params refuse (with the other parameters at their defaults, as the curve runs it) is bad
-    input when the registry loads it. Catches: a declaration checked only when a curve runs
-    (this run asks for no curve), a knob checked against nothing, a traceback instead of exit 2."""
+    Params refuse (with the other parameters at their defaults, as the curve runs it) makes the
+    technique broken when the registry loads it: bad input where a run names it (the others
+    still run: tests/harness/test_plugin_safety.py). Catches: a declaration checked only when a
+    curve runs (this run asks for no curve), a knob checked against nothing, a traceback
+    instead of exit 2."""
     from harness import registry
 
     cls = registry.get(technique)
@@ -124,13 +126,14 @@ def test_bad_quality_knob_declaration_exits_2_naming_technique_and_key(
     out = tmp_path / "out"
     try:
         code = shadowbench(["run", "--scene-file", str(SCENE_FILE), "--scenes", "box_plane",
-                            "--techniques", "sm", "--out", str(out)])
+                            "--techniques", technique, "--out", str(out)])
     finally:
         monkeypatch.undo()
         registry.techniques.cache_clear()
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
-    assert err.startswith(f"shadowbench: technique {technique!r} (techniques.{technique}:"), err
+    assert err.startswith(f"shadowbench: --techniques: {technique} is broken: technique "
+                          f"{technique!r} (techniques.{technique}:"), err
     assert message in err, err
     assert not out.exists()
 

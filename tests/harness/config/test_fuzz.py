@@ -1,7 +1,8 @@
 """Fuzzing the command line with hypothesis: scene and experiment documents of valid structure
 with hostile values, and random mutations of the shipped files (values, keys, names, and the
 YAML text itself). Whatever the document, `shadowbench run` ends with exit 0 or 2, prints no
-traceback (exit 2: exactly one line), and writes nothing outside --out.
+traceback (exit 2: one line, or one per error of a file, up to five and a count), and writes
+nothing outside --out.
 
 What runs: a valid *scene* document is run for real, at 16x16 with one technique (sm), one
 frame and one reference sample, so that hostile but valid geometry goes through the scene
@@ -35,6 +36,7 @@ from hypothesis import strategies as st
 
 from harness import cli, config
 from harness import run as runner
+from harness.config.yaml_source import MAX_LISTED_ERRORS
 from helpers import ROOT
 
 SHIPPED_SCENES = [ROOT / "scenes.yaml", ROOT / "experiments/papers/scenes.yaml",
@@ -203,8 +205,9 @@ def fuzz_cache(tmp_path_factory):
 
 
 def run_and_check(root: Path, args: list[str]) -> int:
-    """`shadowbench run ...` in this process: exit 0 or 2, no traceback, exit 2 in one line,
-    and no file outside ``root/out`` but the inputs in ``root/in``."""
+    """`shadowbench run ...` in this process: exit 0 or 2, no traceback, exit 2 in one line (a
+    file's further errors one more line each, up to MAX_LISTED_ERRORS and a count), and no
+    file outside ``root/out`` but the inputs in ``root/in``."""
     before = {p for p in root.rglob("*") if p.is_file()}
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
@@ -213,7 +216,9 @@ def run_and_check(root: Path, args: list[str]) -> int:
     assert "Traceback" not in text, text
     assert code in (0, 2), text
     if code == 2:
-        assert len(text.strip().splitlines()) == 1, text
+        lines = text.strip().splitlines()
+        assert 1 <= len(lines) <= MAX_LISTED_ERRORS + 1, text
+        assert all(line.startswith("shadowbench: ") for line in lines), text
     event(f"exit {code}")
     written = {p for p in root.rglob("*") if p.is_file()} - before
     outside = [p for p in written if root / "out" not in p.parents]

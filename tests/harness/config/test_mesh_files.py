@@ -75,13 +75,6 @@ def test_a_nan_or_inf_vertex_names_the_vertex(fmt, value, word, tmp_path, capsys
     bad_mesh(tmp_path, capsys, f"m.{fmt}", binary(with_vertex(value), fmt), f"{vertex} is {word}")
 
 
-def test_an_stl_normal_that_is_nan(tmp_path, capsys):
-    records = np.frombuffer(binary(TRIANGLE, "stl")[84:], STL_RECORD).copy()
-    records["normal"][1, 2] = np.nan
-    bad_mesh(tmp_path, capsys, "m.stl", binary(TRIANGLE, "stl")[:84] + records.tobytes(),
-             "normal of triangle 1 is nan")
-
-
 def test_an_obj_whose_triangles_are_all_degenerate(tmp_path, capsys):
     """Before: it ran, and scikit-image's psnr warning (divide by zero) was printed among the
     progress lines."""
@@ -105,7 +98,7 @@ def test_a_mesh_over_the_budget_is_refused_from_its_header_at_once(fmt, tmp_path
     monkeypatch.setattr(trimesh, "load", lambda *a, **k: pytest.fail("the file was loaded"))
     monkeypatch.setattr(mesh_files, "_build", lambda *a: pytest.fail("the file was loaded"))
     started = time.monotonic()
-    with pytest.raises(config.ConfigError, match=r"declares 20,480 triangles, more than the "
+    with pytest.raises(config.ConfigError, match=r"declares (at least )?20,480 triangles, more than the "
                                                  r"budget of 1,000"):
         config.load_scenes(with_mesh(tmp_path, f"m.{fmt}"), triangle_budget=1000)
     assert time.monotonic() - started < 1
@@ -254,7 +247,8 @@ def test_degenerate_triangles_among_good_ones_are_dropped_and_counted(tmp_path, 
     from harness.run.manifest import _meshes
 
     assert _meshes(plan.scenes["s"]) == [{"path": "m.obj", "triangles": 1, "parts": 1,
-                                          "open_parts": 1, "degenerate_dropped": 2}]
+                                          "open_parts": 1, "degenerate_dropped": 2,
+                                              "skipped": {}}]
     json.dumps(_meshes(plan.scenes["s"]))  # as the manifest stores it
 
 

@@ -1,0 +1,231 @@
+"""What the command line prints about the installation and the input before anything is rendered:
+``list`` (techniques with their parameters, broken entry points, stale editable installs; the
+scenes and the file they came from), ``inspect`` (a scene's objects as placed: bounds, up axis,
+triangles, parts) and ``plan`` (the runs a ``run`` would make, grouped, with a time estimate).
+Each function returns the lines; the command prints them."""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections import Counter
+from datetime import datetime
+from pathlib import Path
+
+from . import config, registry
+
+
+def _show(value) -> str:
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _allowed(annotation) -> str:
+    """``grid | jitter`` for a Literal, the type's name otherwise (unions joined)."""
+    import types
+    import typing
+
+    origin = typing.get_origin(annotation)
+    if origin is typing.Literal:
+        return " | ".join(_show(v) for v in typing.get_args(annotation))
+    if origin in (typing.Union, types.UnionType):
+        return " | ".join(_allowed(a) for a in typing.get_args(annotation))
+    if annotation is bool:
+        return "true | false"
+    if annotation is type(None):
+        return "none"
+    return getattr(annotation, "__name__", str(annotation))
+
+
+def _limit(meta) -> str | None:
+    import annotated_types as at
+    from pydantic import AfterValidator
+
+    for kind, op in ((at.Ge, ">="), (at.Gt, ">"), (at.Le, "<="), (at.Lt, "<")):
+        if isinstance(meta, kind):
+            return f"{op} {_show(getattr(meta, kind.__name__.lower()))}"
+    if isinstance(meta, at.MultipleOf):
+        return f"multiple of {_show(meta.multiple_of)}"
+    if isinstance(meta, AfterValidator):
+        if meta.func is config.square_number:
+            return "square number"
+        return getattr(meta.func, "__name__", None)
+    return None  # other metadata (strictness, ...) says nothing about the range
+
+
+def parameter_rows(cls) -> list[tuple[str, str, str]]:
+    """(name, default, allowed values) of each parameter of a technique's Params."""
+    from pydantic_core import PydanticUndefined
+
+    rows = []
+    for pname, field in cls.Params.model_fields.items():
+        default = (field.default_factory() if field.default_factory is not None
+                   else "(required)" if field.default is PydanticUndefined else field.default)
+        limits = [text for text in map(_limit, field.metadata) if text]
+        rows.append((pname, _show(default), ", ".join([_allowed(field.annotation)] + limits)))
+    return rows
+
+
+def techniques_lines() -> list[str]:
+    """Every technique with each parameter's default and allowed values and its quality knobs
+    (the values its curve walks); the plugins' distributions; broken entry points."""
+    lines = ["techniques:"]
+    for name, cls in registry.techniques().items():
+        dist = registry.distribution_of(name)
+        plugin = f" (plugin: {dist})" if dist != registry.OWN_DISTRIBUTION else ""
+        lines.append(f"  {name:10s} {cls.summary}  [{cls.paper}]{plugin}")
+        for pname, default, range_text in parameter_rows(cls):
+            lines.append(f"      {pname:14s} default {default:11s} {range_text}")
+        for knob, values in cls.quality_knobs.items():
+            lines.append(f"      quality knob {knob}: {', '.join(map(_show, values))}")
+    for name, why in registry.broken().items():
+        lines.append(f"  {name:10s} BROKEN, left out of every run: {why}")
+    return lines
+
+
+def scenes_lines(path: Path | None) -> list[str]:
+    """The scenes of ``path`` (None: there is none), naming the file."""
+    if path is None:
+        return ["scenes: no scene file (no ./scenes.yaml, and none shipped with the package); "
+                "give one with --scene-file"]
+    lines = [f"scenes (from {path}):"]
+    for name, scene in config.load_scenes(path, triangle_budget=None).items():
+        geometry = (f"{scene.family.kind} family, {scene.family.triangles:,} triangles"
+                    if scene.family else f"{len(scene.objects)} objects")
+        if scene.family and scene.objects:
+            geometry += f" and {len(scene.objects)} objects"
+        lines.append(f"  {name:16s} {scene.resolution[0]}x{scene.resolution[1]}  "
+                     f"{scene.light.type} light, {geometry}, effects {'+'.join(scene.effects)}")
+        if scene.description:
+            lines.append(f"      {scene.description}")
+        for obj in scene.objects:
+            if isinstance(obj, config.MeshFile):
+                parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
+                lines.append(f"      mesh {obj.label}: {parts.summary()}")
+    return lines
+
+
+def inspect_lines(path: Path, name: str) -> list[str]:
+    """Each object of scene ``name`` as the scene places it (``scale``, then ``rotate`` about x,
+    y, z, then ``translate``; never recentred; a mesh file turned to z up first): its world
+    bounds, up axis, triangles and parts; then the scene's bounds."""
+    import numpy as np
+
+    from .scene import build_parts
+
+    scenes = config.load_scenes(path, triangle_budget=None)
+    if name not in scenes:
+        raise config.ConfigError(f"--scene {name}: no such scene in {path}; it has "
+                                 f"{', '.join(scenes)}")
+    scene = scenes[name]
+    parts = build_parts(scene, Path(path))
+    lines = [f"scene {name} (from {path}): z is up; object = translate(rotate_z(rotate_y("
+             "rotate_x(scale(vertices))))), in the file's own origin (never recentred)"]
+
+    def bounds(vertices) -> str:
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        return (f"[{', '.join(f'{v:.4g}' for v in low)}] .. "
+                f"[{', '.join(f'{v:.4g}' for v in high)}]")
+
+    for index, obj in enumerate(scene.objects):
+        own = [p for p in parts if p.object_index == index]
+        vertices = np.concatenate([p.vertices for p in own])
+        triangles = sum(len(p.faces) for p in own)
+        label = obj.label if isinstance(obj, config.MeshFile) else obj.shape
+        up = f"file up {obj.up}" if isinstance(obj, config.MeshFile) else "z up"
+        copies = f", {int(np.prod(obj.array.count))} copies" if obj.array else ""
+        lines.append(f"  {index}: {label}{f' ({obj.name})' if obj.name else ''}: bounds "
+                     f"{bounds(vertices)}, {up}, {triangles:,} triangles, {len(own)} parts"
+                     f"{copies}")
+    family = [p for p in parts if p.object_index == -1]
+    if family:
+        vertices = np.concatenate([p.vertices for p in family])
+        lines.append(f"  family {scene.family.kind}: bounds {bounds(vertices)}, "
+                     f"{sum(len(p.faces) for p in family):,} triangles, {len(family)} parts")
+    if parts:
+        lines.append(f"  scene bounds {bounds(np.concatenate([p.vertices for p in parts]))}")
+    return lines
+
+
+def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
+    """The runs of ``plan`` grouped by scene (runs of each technique), the plan's notes, and the
+    time the runs not yet in ``out`` would take, from the runs stored in ``stored`` (see
+    :func:`estimate`)."""
+    from .results import read_rows
+
+    done = {r["run_id"] for r in (read_rows(out) if out is not None else [])
+            if r["status"] in ("ok", "skipped")}
+    todo = [spec for spec in plan.runs if spec.run_id not in done]
+    lines = [f"{len(plan.runs)} runs (duplicate points merged) in {len(plan.scenes)} scenes, "
+             f"cost policy {plan.cost}" + (f"; {len(plan.runs) - len(todo)} of them in {out} "
+                                           "already" if out is not None else "") + ":"]
+    by_scene: dict[tuple, Counter] = {}
+    for spec in plan.runs:
+        by_scene.setdefault((spec.scene, spec.width, spec.height), Counter())[spec.technique] += 1
+    for (scene, width, height), counts in by_scene.items():
+        lines.append(f"  {scene} {width}x{height}: {sum(counts.values())} runs: "
+                     + ", ".join(f"{t} {n}" for t, n in counts.items()))
+    lines += plan.notes
+    if not todo:
+        lines.append(f"time: none; every run is in {out} already")
+        return lines
+    rows = read_rows(stored) if stored is not None else []
+    seconds, matched = estimate(todo, rows, _wall_seconds(stored) if rows else None)
+    if not seconds:
+        lines.append("time: no estimate (no stored run like these; give --from DIR, a folder "
+                     "an earlier run of this experiment wrote)")
+        return lines
+    lines.append(f"time: about {_duration(seconds)} for the {len(todo)} runs to render "
+                 f"({matched} like a run stored in {stored}, the rest at those runs' median "
+                 "share), at the pace those runs took on the machine that ran them")
+    return lines
+
+
+def estimate(todo, rows: list[dict], wall: float | None) -> tuple[float, int]:
+    """Seconds for the runs ``todo`` from stored rows: each stored ok run's share of the
+    folder's wall time (``wall``: its invocations' durations) is in proportion to its frame
+    work (frames x time_ms, plus setup_ms); a planned run like a stored one (same scene, size,
+    technique, parameters) takes that share, scaled by its own frame count, and any other the
+    stored runs' median share. Returns (seconds, runs matched)."""
+    def work(row) -> float | None:
+        try:
+            return int(row["frames"]) * float(row["time_ms"]) + float(row.get("setup_ms") or 0)
+        except (KeyError, ValueError):
+            return None
+
+    ok = [(r, work(r)) for r in rows if r["status"] == "ok" and work(r) is not None]
+    total = sum(w for _, w in ok)
+    if not todo or not ok or not total or not wall:
+        return 0.0, 0
+    share = {(r["scene"], r["width"], r["height"], r["technique"],
+              json.dumps(json.loads(r["params"] or "{}"), sort_keys=True)):
+             (wall * w / total, int(r.get("frames") or 1)) for r, w in ok}
+    median = statistics.median(s for s, _ in share.values())
+    seconds, matched = 0.0, 0
+    for spec in todo:
+        found = share.get((spec.scene, str(spec.width), str(spec.height), spec.technique,
+                           spec.params_json))
+        if found:
+            matched += 1
+            seconds += found[0] * spec.frames / max(found[1], 1)
+        else:
+            seconds += median
+    return seconds, matched
+
+
+def _wall_seconds(folder: Path) -> float | None:
+    """The summed durations of the invocations recorded in ``folder``'s manifest."""
+    from .run import read_manifest
+
+    total = 0.0
+    for session in read_manifest(folder).get("invocations", []):
+        try:
+            total += (datetime.fromisoformat(session["finished"])
+                      - datetime.fromisoformat(session["started"])).total_seconds()
+        except (KeyError, TypeError, ValueError):
+            continue
+    return total or None
+
+
+def _duration(seconds: float) -> str:
+    minutes, rest = divmod(round(seconds), 60)
+    return f"{minutes} min {rest} s" if minutes else f"{rest} s"
