@@ -24,8 +24,10 @@ class PerTriangleShadowVolumes(Technique):
     """Exact hard shadows without rasterising a volume: each triangle's shadow volume (its
     plane and the three planes through its edges and the light) is tested in a compute shader
     against a hierarchy over the G-buffer's samples, and the samples inside any volume are
-    shadowed (Sintorn, Olsson, Assarsson 2011, "Per-triangle shadow volumes using a
-    view-sample cluster hierarchy").
+    shadowed (Sintorn, Olsson, Assarsson 2011, "An efficient alias-free shadow algorithm for
+    opaque and transparent objects using per-triangle shadow volumes"; the clusters of
+    Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a view-sample
+    cluster hierarchy", are not built).
 
     Every frame, inside timed passes: ``hierarchy`` builds, bottom up, the bounds of each
     ``tile`` x ``tile`` block of samples, then of each such block of blocks, up to one root
@@ -65,8 +67,8 @@ class PerTriangleShadowVolumes(Technique):
 
     name = "ptsv"
     summary = "per-triangle shadow volumes tested in compute against a hierarchy of view samples"
-    paper = ("Sintorn, Olsson, Assarsson 2011, Per-triangle shadow volumes using a view-sample "
-             "cluster hierarchy")
+    paper = ("Sintorn, Olsson, Assarsson 2011, An efficient alias-free shadow algorithm for "
+             "opaque and transparent objects using per-triangle shadow volumes")
     # quality knob: the samples' resolution (error for time), its two ends, to keep make bench
     # within its 10 minutes. The tile size changes the cost only, never V: experiments/scale.yaml
     # walks it.
