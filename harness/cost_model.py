@@ -11,7 +11,12 @@
 
 Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
 each map pass (indexed meshes), and the volume vertices a shadow-volume pass extrudes. Compute
-invocations count the reductions' work (one invocation per 16-pixel column of each dispatch).
+invocations count the reductions' work (one invocation per 16-pixel column of each dispatch)
+and the work of techniques built on compute shaders: a hierarchical test of volumes against
+view samples spends one invocation per triangle set up and one per child node or sample it
+tests (its rows also carry the tests themselves, ``node_tests`` and ``sample_tests``, with
+its ``triangles_culled`` and ``queue_items``), so those tests reach the estimate through the
+compute term, counted once.
 A ray-traced technique counts its traversal's work in an untimed repeat (``traversal_nodes``,
 ``triangle_tests``: per frame, over all its rays); a row without them did none (0).
 

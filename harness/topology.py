@@ -24,6 +24,7 @@ class Edges:
     faces_per_edge: np.ndarray  # (E,)
     parts: int
     open_parts: int
+    closed: np.ndarray  # (P,) bool: whether each part is closed
 
 
 def edges(vertices: list[np.ndarray], faces: list[np.ndarray]) -> Edges:
@@ -47,7 +48,8 @@ def edges(vertices: list[np.ndarray], faces: list[np.ndarray]) -> Edges:
     part_of_face = np.repeat(np.arange(len(faces)), [len(f) for f in faces])
     bad_part = np.zeros(len(faces), bool)
     bad_part[part_of_face[face_of_half[bad_edge[edge_of_half]]]] = True
-    return Edges(face_of_half, edge_of_half, faces_per_edge, len(faces), int(bad_part.sum()))
+    return Edges(face_of_half, edge_of_half, faces_per_edge, len(faces), int(bad_part.sum()),
+                 ~bad_part)
 
 
 def shadow_edges(edges: Edges, triangles: np.ndarray, light) -> int:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Literal
 
+from pydantic import model_validator
+
 import numpy as np
 from OpenGL import GL
 
@@ -11,6 +13,7 @@ from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from . import sv_cpu, sv_volumes
+from .sv_cull import ReceiverGrid
 from .sv_gpu import GpuVolumes
 
 # Mask channel and the level between shadow and lit that the normalised mask is snapped at.
@@ -89,6 +92,16 @@ class ShadowVolumes(Technique):
     volume's clip polygons between its increments and its decrements. The normalisation
     rectangles and the visibility pass shade covered pixels only.
 
+    ``cull: cc`` (Lloyd, Wendt, Govindaraju, Manocha 2004, "CC shadow volumes") spends one more
+    timed pass, ``receivers``, on a light-space grid of the G-buffer's samples (each cell's
+    deepest receiver along the light, and its max pyramid: ``sv_cull``); the geometry shader
+    then culls every per-triangle volume with no receiver beyond its triangle in the cells its
+    footprint touches. The test is conservative: V is the same as with ``none``, only fill and
+    time change. Lloyd et al.'s clamping of the remaining volumes is left out: it moved V at
+    tie pixels (see ``sv_cull``). It applies to a directional light's per-triangle volumes
+    (open parts, or all with ``volumes: polygon``); silhouette volumes, and every volume of a
+    spot or point light, are drawn as with ``none``.
+
     Volume fragments are counted untimed, with the depth test off, whenever the light, the
     camera or an object moved (once on a still scene): they are the row's
     ``frags_shadow``, so ``overdraw`` = that / scene fragments is the silhouette-map paper's O.
@@ -106,6 +119,9 @@ class ShadowVolumes(Technique):
                      ``max`` (1, section 4.4)
     ``volumes``      ``auto``, ``silhouette`` (one per closed mesh, even    auto
                      non-convex) or ``polygon`` (one per triangle)
+    ``cull``         ``none`` or ``cc`` (Lloyd et al. 2004: per-triangle       none
+                     volumes that reach no visible receiver culled;
+                     directional light; not with nearclip)
     ===============  =====================================================  ==========  =====
     """
 
@@ -128,6 +144,14 @@ class ShadowVolumes(Technique):
         mask_res: Literal["full", "half", "quarter"] = "full"
         normalize: Literal["rectangles", "max"] = "rectangles"
         volumes: Literal["auto", "silhouette", "polygon"] = "auto"
+        cull: Literal["none", "cc"] = "none"
+
+        @model_validator(mode="after")
+        def _cull_needs_gpu_volumes(self):
+            if self.cull == "cc" and self.method == "nearclip":
+                raise ValueError("cull: cc needs method zpass or zfail (nearclip draws each "
+                                 "volume's near-plane clip polygon apart from the volume)")
+            return self
 
     def prepare(self, frame: Frame) -> None:
         p = self.params
@@ -136,6 +160,8 @@ class ShadowVolumes(Technique):
         nested = p.buffer == "stencil" or p.normalize == "max"
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
         self.volumes, self.near_clip = self._volume_geometry(frame)
+        self.receivers = ReceiverGrid() if p.cull == "cc" else None
+        self.receiver_uniforms = False  # whether the volume pass culls by a grid built
         # what the diagnostics were last counted for
         self.view_proj = None  # the frame's camera, set by render
         self.counted_for = None  # the light, camera and poses the diagnostics are of
@@ -161,7 +187,8 @@ class ShadowVolumes(Technique):
         volumes = GpuVolumes([part.name for part in frame.scene.parts], self.meshes,
                              self.single, caps=p.method == "zfail",
                              increments_first=p.buffer != "stencil",
-                             nested_counts=p.buffer == "stencil" or p.normalize == "max")
+                             nested_counts=p.buffer == "stencil" or p.normalize == "max",
+                             cull=p.cull == "cc")
         near_clip = (sv_cpu.NearClipPolygons(self.meshes, self.single)
                      if p.method == "nearclip" else None)
         return volumes, near_clip
@@ -203,6 +230,8 @@ class ShadowVolumes(Technique):
                 "mask_width": self.mask.width, "mask_height": self.mask.height}
 
     def _draw_volumes(self, light, poses: np.ndarray, **fragment_uniforms) -> None:
+        if self.receiver_uniforms:  # a grid was built this frame (binds it, too)
+            fragment_uniforms["receivers"] = self.receivers.uniforms()
         self.volumes.draw(light, self.view_proj, poses, front_increments=self.front_increments,
                           **fragment_uniforms)
         if self.near_clip:
@@ -347,6 +376,11 @@ class ShadowVolumes(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
         self.view_proj = frame.camera.view_proj  # the G-buffer's: its depth is the one tested
+        light = frame.scene.light
+        if self.receivers and light.type == "directional":
+            with frame.measure("receivers"):
+                self.receivers.build(frame, light)
+                self.receiver_uniforms = True
         if not self.shares_scene_depth:
             with frame.measure("depth"):
                 self._clear_mask()
@@ -364,7 +398,8 @@ class ShadowVolumes(Technique):
             self._visibility_pass(frame)
         self._count_diagnostics(frame)
         fill = dict(self.fill)
-        return frame.output(mem_bytes=self.mask.nbytes,
+        return frame.output(mem_bytes=self.mask.nbytes + (self.receivers.mem_bytes
+                                                          if self.receiver_uniforms else 0),
                             fetches_per_px=1 if self.shares_scene_depth else 4,
                             shadow_fragments=fill.pop("volume_frags"), extra=fill,
                             warnings=self.warnings)
@@ -375,6 +410,6 @@ class ShadowVolumes(Technique):
             # alive past its deletion, until a geometry-shader program is bound again
             self.volumes.polygon_program.use()
         for resource in (self.volumes, self.near_clip, self.mask, self.scene_program,
-                         self.fill_program, self.visibility_program):
+                         self.fill_program, self.visibility_program, self.receivers):
             if resource:
                 resource.release()

@@ -34,7 +34,7 @@ from harness.gl.geometry import VertexArray
 from harness.gl.shaders import Program
 from harness.scene import Light
 
-from . import sv_volumes
+from . import sv_cull, sv_volumes
 from .sv_volumes import CleanMesh
 
 # position, other end, plane of the face holding position -> other end, of its twin, far corner
@@ -117,7 +117,7 @@ class GpuVolumes:
     volume, convex wherever that order matters: drawn twice, culled one way then the other)."""
 
     def __init__(self, names: list[str], meshes: list[CleanMesh], single: list[bool], *,
-                 caps: bool, increments_first: bool, nested_counts: bool):
+                 caps: bool, increments_first: bool, nested_counts: bool, cull: bool = False):
         self.caps, self.increments_first = caps, increments_first
         self.names, self.meshes, self.single = names, meshes, single
         self.nested_counts = nested_counts
@@ -136,17 +136,21 @@ class GpuVolumes:
         self.polygon_ranges = _ranges([3 * len(m.faces) for m in open_])
         self.edge_program = _program("sv_edge.vert.glsl")
         self.cap_program = _program("sv_cap.vert.glsl")
+        # cull: cc reads the receivers' grid in the per-triangle volumes' geometry shader
+        culling = {"CULL": 1, "GRID_SIZE": sv_cull.GRID} if cull else {}
         self.polygon_program = _program("sv_polygon.vert.glsl", "sv_polygon.geom.glsl",
-                                        EDGE_ON=repr(sv_volumes.DEGENERATE))
+                                        EDGE_ON=repr(sv_volumes.DEGENERATE), **culling)
         self.programs = (self.edge_program, self.cap_program, self.polygon_program)
 
     def draw(self, light: Light, view_proj: np.ndarray, poses: np.ndarray,
-             **fragment_uniforms) -> None:
+             receivers: dict | None = None, **fragment_uniforms) -> None:
         """All volumes for ``light``, each part placed by its pose in ``poses`` (P, 4, 4);
-        ``fragment_uniforms`` go to sv_volume.frag.glsl."""
+        ``fragment_uniforms`` go to sv_volume.frag.glsl; ``receivers``: cull: cc's grid
+        (``sv_cull.ReceiverGrid.uniforms``), None for no culling."""
         for program in self.programs:
             program.use().set(view_proj=view_proj, caps=self.caps,
                               increments_first=self.increments_first, **fragment_uniforms)
+        self.polygon_program.use().set(**(receivers or {"cull_on": False}))
         positional = light.positional
         for pose, closed, open_ in self._batches(poses):
             self._place(light, pose)

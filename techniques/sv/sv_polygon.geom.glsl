@@ -6,6 +6,15 @@
 // the faces that increment the count come out before those that decrement it; faces leave
 // in primitive order, so volume by volume.
 #include "sv_extrude.glsl"
+#ifdef CULL
+// cull: cc (Lloyd et al. 2004), directional light: a volume with no visible receiver beyond its
+// triangle (by more than receiver_margin of light depth) in the cells of the triangle's
+// light-space footprint is culled. Its sides are not clamped: a finite far edge rasterises
+// otherwise than the edge to infinity, which moved V at tie pixels (sv_cull.py).
+#include "sv_receivers.glsl"
+uniform bool cull_on;  // a directional light and a built grid
+uniform float receiver_margin;
+#endif
 
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 24) out;
@@ -29,6 +38,14 @@ void main() {
     bool away = facing < 0.0;
     vec3 p[3] = vec3[3](corner_position[0], corner_position[away ? 2 : 1],
                         corner_position[away ? 1 : 2]);
+#ifdef CULL
+    if (cull_on) {
+        vec3 l[3];
+        for (int k = 0; k < 3; ++k) l[k] = light_basis * (model * vec4(p[k], 1.0)).xyz;
+        vec2 lo = min(min(l[0].xy, l[1].xy), l[2].xy), hi = max(max(l[0].xy, l[1].xy), l[2].xy);
+        if (deepest_receiver(lo, hi) < min(min(l[0].z, l[1].z), l[2].z) - receiver_margin) return;
+    }
+#endif
     vec4 near[3], far[3];
     for (int k = 0; k < 3; ++k) {
         near[k] = to_clip(vec4(p[k], 1.0));

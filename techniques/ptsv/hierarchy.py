@@ -1,0 +1,260 @@
+"""The GPU side of ptsv: the hierarchy over the view samples, the per-triangle volumes and the
+level-by-level traversal, with the buffers they share (a helper of the technique, not one).
+
+Levels: level 0 is the samples (the G-buffer at the mask's resolution), level k >= 1 a grid of
+nodes, each the ``tile`` x ``tile`` nodes (or samples) below it, up to a single root. Node
+numbers run level 1 first; the marks buffer holds one flag per sample, then one per node. The
+traversal queues (volume, node) items in two regions used in turn (level k in region k & 1),
+each of ``capacity`` items; the planes buffer holds the queued triangles' volumes. Both grow
+when a frame overflows them (counted on the GPU, read back once after the traversal, which then
+runs again with room): memory follows the scene instead of a worst case.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from OpenGL import GL
+
+from harness.gl.framebuffer import Texture
+from harness.gl.shaders import ComputeProgram
+
+HERE = Path(__file__).parent
+# counters (ptsv_volume.glsl's COUNT_*), then one per level: items queued for it
+COUNTER_NAMES = ("volumes_queued", "triangles_culled", "node_tests", "trivial_accepts",
+                 "root_accepts", "sample_tests")
+COUNT_LEVELS = 8
+EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which it casts nothing
+MIN_CAPACITY = 1 << 14
+MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the triangles go in batches
+ITEM_BYTES = 8  # (volume, node)
+PLANES_BYTES = 64  # four vec4 per volume
+BOX_BYTES = 32
+
+
+def closed_sides(triangles: np.ndarray, part_faces: list[int], closed: np.ndarray) -> np.ndarray:
+    """Per triangle (T, 3, 3): 0 in an open part; in a closed part 1 where the part's winding
+    turns its faces outward (positive signed volume), -1 where inward."""
+    tri = triangles.astype(np.float64)
+    det = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    starts = np.minimum(np.concatenate([[0], np.cumsum(part_faces)[:-1]]), max(len(det) - 1, 0))
+    volume = np.add.reduceat(det, starts) if len(det) else np.zeros(0)
+    volume = np.where(np.asarray(part_faces) > 0, volume, 0.0)
+    side = np.where(closed, np.sign(volume), 0).astype(np.int32)
+    return np.repeat(side, part_faces)
+
+
+def level_sizes(width: int, height: int, tile: int) -> list[tuple[int, int]]:
+    """Samples per row and column, then nodes per row and column of each level up to the root
+    (at least one node level)."""
+    sizes = [(width, height)]
+    while len(sizes) < 2 or sizes[-1] != (1, 1):
+        w, h = sizes[-1]
+        sizes.append((-(-w // tile), -(-h // tile)))
+    return sizes
+
+
+def _storage(nbytes: int) -> int:
+    buffer = GL.glGenBuffers(1)
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
+    GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, max(int(nbytes), 16), None, GL.GL_DYNAMIC_COPY)
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+    return buffer
+
+
+def _zero(buffer: int) -> None:
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
+    GL.glClearBufferData(GL.GL_SHADER_STORAGE_BUFFER, GL.GL_R32UI, GL.GL_RED_INTEGER,
+                         GL.GL_UNSIGNED_INT, None)
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+
+def _set(program, **uniforms) -> None:
+    """Unsigned uniforms: ints as ``uint``, pairs as ``uvec2``; the rest through Program.set."""
+    rest = {}
+    for name, value in uniforms.items():
+        if isinstance(value, tuple) and all(isinstance(v, (int, np.integer)) for v in value):
+            GL.glUniform2ui(program.location(name), *map(int, value))
+        elif isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            GL.glUniform1ui(program.location(name), int(value))
+        else:
+            rest[name] = value
+    program.set(**rest)
+
+
+def _barrier() -> None:
+    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT)
+
+
+def _rows(groups: int) -> tuple[int, int]:
+    """``groups`` work groups as rows of at most 65535 (GL's smallest maximum)."""
+    rows = max(1, -(-groups // 65535))
+    return -(-groups // rows), rows
+
+
+class SampleHierarchy:
+    """Buffers and programs for one image size, tile and mask divisor."""
+
+    def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray):
+        triangles = len(closed_side)
+        self.divisor, self.tile, self.triangles = divisor, tile, triangles
+        self.sizes = level_sizes(-(-width // divisor), -(-height // divisor), tile)
+        self.levels = len(self.sizes) - 1
+        self.samples = self.sizes[0][0] * self.sizes[0][1]
+        nodes = [w * h for w, h in self.sizes[1:]]
+        self.node_first = [0, *np.cumsum([0] + nodes[:-1]).tolist()]  # by level, [0] unused
+        self.nodes = int(sum(nodes))
+        self.root = self.node_first[self.levels]
+        self.items_per_group = max(1, 64 // (tile * tile))
+        defines = {"TILE": tile, "ITEMS_PER_GROUP": self.items_per_group,
+                   "GROUP_SIZE": tile * tile * self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
+
+        def program(name, **more):
+            return ComputeProgram(HERE / name, {**defines, **more})
+
+        self.box_program = program("ptsv_boxes.comp.glsl")
+        self.dispatch_program = program("ptsv_dispatch.comp.glsl")
+        # the timed programs, and the same counting their work for the untimed repeat
+        self.setup_programs = {c: program("ptsv_setup.comp.glsl", **({"COUNT": 1} if c else {}))
+                               for c in (False, True)}
+        self.traverse_programs = {c: program("ptsv_traverse.comp.glsl",
+                                             **({"COUNT": 1} if c else {})) for c in (False, True)}
+        self.boxes = _storage(self.nodes * BOX_BYTES)
+        self.marks = _storage((self.samples + self.nodes) * 4)
+        self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
+        self.dispatch = _storage(12)
+        self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
+        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
+                           np.ascontiguousarray(closed_side, np.int32))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        self.capacity = self.volume_capacity = 0
+        self.queues = self.planes = None
+        self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
+                   max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
+        self.batch = triangles  # triangles per traversal batch, halved while queues overflow
+
+    @property
+    def mem_bytes(self) -> int:
+        """What the hierarchy, marks, volumes and work queues hold."""
+        return (self.nodes * BOX_BYTES + (self.samples + self.nodes) * 4
+                + 2 * self.capacity * ITEM_BYTES + self.volume_capacity * PLANES_BYTES
+                + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + 4 * self.triangles)
+
+    def _grow(self, capacity: int, volume_capacity: int) -> None:
+        if capacity > self.capacity:
+            if self.queues:
+                GL.glDeleteBuffers(1, [self.queues])
+            self.capacity = capacity
+            self.queues = _storage(2 * capacity * ITEM_BYTES)
+        if volume_capacity > self.volume_capacity:
+            if self.planes:
+                GL.glDeleteBuffers(1, [self.planes])
+            self.volume_capacity = volume_capacity
+            self.planes = _storage(volume_capacity * PLANES_BYTES)
+
+    def _bind(self) -> None:
+        for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
+                                (5, self.queues), (6, self.counters)):
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
+
+    def build(self, position: Texture, origin: np.ndarray) -> None:
+        """Each level's node boxes from the G-buffer's positions (relative to ``origin``),
+        bottom up."""
+        self._bind()
+        program = self.box_program.use()
+        program.set(gbuffer_position=position.bind(0), divisor=self.divisor,
+                    origin=np.asarray(origin, np.float32))
+        for level in range(1, self.levels + 1):
+            (w, h), (cw, ch) = self.sizes[level], self.sizes[level - 1]
+            _set(program, level=level, node_size=(w, h), child_size=(cw, ch),
+                 node_first=self.node_first[level],
+                 child_first=self.node_first[level - 1] if level > 1 else 0)
+            GL.glDispatchCompute(-(-w // 8), -(-h // 8), 1)
+            _barrier()
+
+    def traverse(self, position: Texture, vertices: int, indices: int, light: np.ndarray,
+                 origin: np.ndarray, tie: float, count: bool = False) -> np.ndarray:
+        """Mark the samples and nodes inside the volumes of the scene's triangles (vertex and
+        index buffers of the scene mesh) for ``light`` (homogeneous), positions taken relative
+        to ``origin`` (float32, near the scene). The triangles go in batches (all at once
+        unless a frame needed more room): a batch whose queues overflowed runs again with room
+        (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
+        once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
+        counters (read back), summed over the batches."""
+        _zero(self.marks)
+        total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
+        self.peak = self.batches = start = 0
+        while start < self.triangles:
+            end = min(start + self.batch, self.triangles)
+            counters = self._traverse_batch(position, vertices, indices, light, origin, tie,
+                                            count, start, end)
+            needed = int(counters[COUNT_LEVELS:].max(initial=0))
+            volumes = int(counters[0])
+            if needed <= self.capacity and volumes <= self.volume_capacity:
+                total += counters
+                self.peak = max(self.peak, needed)
+                self.batches += 1
+                start = end
+                continue
+            if self.capacity < MAX_CAPACITY or needed <= MAX_CAPACITY:
+                self._grow(min(1 << max(needed - 1, 1).bit_length(), MAX_CAPACITY),
+                           1 << max(volumes - 1, 1).bit_length())
+            else:
+                self.batch = max(1, (end - start) // 2)
+        return total
+
+    def _traverse_batch(self, position, vertices, indices, light, origin, tie, count,
+                        start: int, end: int) -> np.ndarray:
+        _zero(self.counters)
+        self._bind()
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 0, vertices)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
+        shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
+                      volume_capacity=self.volume_capacity, sample_count=self.samples)
+        setup = self.setup_programs[count].use()
+        _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
+             triangle_end=end, root=self.root, root_level=self.levels, **shared)
+        GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
+        _barrier()
+        traverse = self.traverse_programs[count]
+        traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
+        _set(traverse, **shared)
+        GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
+        for level in range(self.levels, 0, -1):
+            _set(self.dispatch_program.use(), level=level, items_per_group=self.items_per_group,
+                 capacity=self.capacity)
+            GL.glDispatchCompute(1, 1, 1)
+            _barrier()
+            cw, ch = self.sizes[level - 1]
+            _set(traverse.use(), level=level, node_width=self.sizes[level][0],
+                 child_size=(cw, ch), child_first=self.node_first[level - 1] if level > 1 else 0)
+            GL.glDispatchComputeIndirect(0)
+            _barrier()
+        GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, 0)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.counters)
+        counters = np.frombuffer(GL.glGetBufferSubData(
+            GL.GL_SHADER_STORAGE_BUFFER, 0, (COUNT_LEVELS + self.levels + 1) * 4),
+            np.uint32).copy()
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        GL.glUseProgram(0)
+        return counters
+
+    def counts(self, counters: np.ndarray) -> dict:
+        """The counted work of the last traversal (run with ``count``) as result columns:
+        ``queue_peak`` is the most items one level's queue held in one batch."""
+        queued = counters[COUNT_LEVELS + 1:COUNT_LEVELS + self.levels + 1]
+        out = {name: int(counters[i]) for i, name in enumerate(COUNTER_NAMES)}
+        out.update(queue_items=int(queued.sum()), queue_peak=self.peak,
+                   traversal_batches=self.batches, hierarchy_levels=self.levels)
+        return out
+
+    def release(self) -> None:
+        GL.glDeleteBuffers(7, [self.boxes, self.marks, self.counters, self.dispatch,
+                               self.queues, self.planes, self.closed_side])
+        for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),
+                        *self.traverse_programs.values()):
+            program.release()

@@ -1,0 +1,154 @@
+"""Per-triangle shadow volumes tested against a hierarchy of view samples (Sintorn, Olsson,
+Assarsson 2011)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from OpenGL import GL
+from pydantic import Field, field_validator
+
+from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+
+from .hierarchy import SampleHierarchy, closed_sides
+
+# mask_res -> image pixels along each axis per sample (as sv's)
+MASK_DIVISOR = {"full": 1, "half": 2, "quarter": 4}
+# a point this far behind its own triangle's plane, relative to the scene's largest coordinate,
+# counts as shadowed by it: float32 G-buffer positions and planes lie within ~1e-7 of it
+TIE = 2.0 ** -20
+
+
+class PerTriangleShadowVolumes(Technique):
+    """Exact hard shadows without rasterising a volume: each triangle's shadow volume (its
+    plane and the three planes through its edges and the light) is tested in a compute shader
+    against a hierarchy over the G-buffer's samples, and the samples inside any volume are
+    shadowed (Sintorn, Olsson, Assarsson 2011, "An efficient alias-free shadow algorithm for
+    opaque and transparent objects using per-triangle shadow volumes"; the clusters of
+    Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a view-sample
+    cluster hierarchy", are not built).
+
+    Every frame, inside timed passes: ``hierarchy`` builds, bottom up, the bounds of each
+    ``tile`` x ``tile`` block of samples, then of each such block of blocks, up to one root
+    (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles);
+    ``volumes`` computes every triangle's volume from the frame's light (directional, spot or
+    point; each triangle turned toward the light, an edge-on one casting none, as sv's
+    per-triangle volumes; in a closed part only the triangles facing the light, which shadow
+    all that the part does) and tests the root, then descends level by level: a node outside the
+    volume is skipped, one inside is marked shadowed whole, any other has its children tested,
+    down to the samples themselves. Work moves between levels in queues of (volume, node)
+    items filled by atomics and dispatched indirectly; a work group tests one node's children,
+    whatever the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where
+    a sample or any node above it was marked. Samples are tested where they are, so open parts,
+    triangle soups and the camera inside a shadow need nothing special, and there is no near or
+    far plane to clip against. A point exactly on its own triangle's plane (within float32
+    rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it.
+
+    Counted in an untimed repeat whenever the light, the camera or an object moved:
+    ``node_tests`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes marked
+    whole; ``root_accepts`` of them at the root), ``sample_tests``, ``triangles_culled``
+    (edge-on, turned from the light in a closed part, or the root's box outside the volume),
+    ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
+    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the queued volumes and the
+    work queues, which grow when a frame overflows them, up to 2^22 items a queue; past that
+    the triangles are traversed in batches (``hierarchy.py``).
+
+    ==============  ====================================================  =======  ===========
+    Parameter       Meaning                                               Default  Range
+    ==============  ====================================================  =======  ===========
+    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile   tiles
+    ``tile``        children per node along each axis (a power of two)    2        2 .. 16
+    ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
+                    pixel per 1, 2 or 4 along each axis; bilinear
+                    magnification, as sv)
+    ==============  ====================================================  =======  ===========
+    """
+
+    name = "ptsv"
+    summary = "per-triangle shadow volumes tested in compute against a hierarchy of view samples"
+    paper = ("Sintorn, Olsson, Assarsson 2011, An efficient alias-free shadow algorithm for "
+             "opaque and transparent objects using per-triangle shadow volumes")
+    # quality knob: the samples' resolution (error for time), its two ends, to keep make bench
+    # within its 10 minutes. The tile size changes the cost only, never V: experiments/scale.yaml
+    # walks it.
+    quality_knobs = {"mask_res": ("quarter", "full")}
+    declines_lights = {}  # a volume is the same four planes for every light type
+
+    class Params(TechniqueParams):
+        hierarchy: Literal["tiles"] = "tiles"
+        tile: int = Field(2, ge=2, le=16)
+        mask_res: Literal["full", "half", "quarter"] = "full"
+
+        @field_validator("tile")
+        @classmethod
+        def _power_of_two(cls, value: int) -> int:
+            if value & (value - 1):
+                raise ValueError(f"must be a power of two, got {value}")
+            return value
+
+    def prepare(self, frame: Frame) -> None:
+        p = self.params
+        self.divisor = MASK_DIVISOR[p.mask_res]
+        scene = frame.scene
+        sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
+                             scene.edges.closed)
+        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides)
+        self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
+                                              "ptsv_visibility.frag.glsl", TILE=p.tile)
+        self.counted_for = None
+        self.work: dict = {}
+
+    def _tie(self, frame: Frame) -> float:
+        bounds = np.abs(frame.scene.bounds).max()
+        return TIE * float(max(bounds, np.abs(frame.camera.position).max(), 1e-30))
+
+    @staticmethod
+    def _origin(frame: Frame) -> np.ndarray:
+        """The centre of the scene's bounds, in float32: positions are taken relative to it."""
+        return frame.scene.bounds.mean(axis=0).astype(np.float32)
+
+    def _light(self, frame: Frame) -> np.ndarray:
+        light = frame.scene.light
+        return (np.append(-light.direction, 0.0) if light.type == "directional"
+                else np.append(light.position, 1.0))
+
+    def _traverse(self, frame: Frame, count: bool = False) -> np.ndarray:
+        mesh = frame.geometry
+        return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo, mesh.ebo,
+                                       self._light(frame), self._origin(frame), self._tie(frame),
+                                       count)
+
+    def render(self, frame: Frame) -> ShadowOutput:
+        h = self.hierarchy
+        with frame.measure("hierarchy"):
+            h.build(frame.gbuffer.position_texture, self._origin(frame))
+        with frame.measure("volumes"):
+            self._traverse(frame)
+        with frame.measure("visibility"):
+            frame.begin_visibility()
+            program = self.visibility_program.use()
+            frame.bind_gbuffer(program)
+            program.set(levels=h.levels, magnify=self.divisor > 1)
+            GL.glUniform2ui(program.location("mask_size"), *h.sizes[0])
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 4, h.marks)
+            frame.draw_fullscreen(covered_only=True)
+        self._count(frame)
+        taps = 1 if self.divisor == 1 else 4
+        return frame.output(mem_bytes=h.mem_bytes, fetches_per_px=taps * (h.levels + 1),
+                            shadow_fragments=0, extra=dict(self.work))
+
+    def _count(self, frame: Frame) -> None:
+        """The untimed repeat: the traversal again, counting its work, when the light, the
+        camera or an object moved (once on a still scene); V is not changed by it."""
+        light = frame.scene.light
+        key = (self._light(frame).tobytes(), frame.camera.view_proj.tobytes(),
+               frame.part_poses.tobytes(), light.type)
+        if key == self.counted_for:
+            return
+        self.counted_for = key
+        self.work = self.hierarchy.counts(self._traverse(frame, count=True))
+
+    def release(self) -> None:
+        self.hierarchy.release()
+        self.visibility_program.release()

@@ -1,0 +1,38 @@
+// The hierarchy over the view samples, one level per dispatch: each node's box is the
+// axis-aligned bounds (world space) of its TILE x TILE children, samples for level 1 (their
+// G-buffer positions, covered ones only), nodes of the level below otherwise. A node without a
+// covered sample gets an empty box (lo > hi), which every test skips.
+#include "ptsv_volume.glsl"
+#include "ptsv_samples.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+uniform uint level;
+uniform uvec2 node_size;  // nodes per row and column at this level
+uniform uvec2 child_size;
+uniform uint node_first;  // node number of this level's first node
+uniform uint child_first;  // of the level below's (level > 1)
+
+void main() {
+    uvec2 node = gl_GlobalInvocationID.xy;
+    if (any(greaterThanEqual(node, node_size))) return;
+    vec3 lo = vec3(3.0e38), hi = vec3(-3.0e38);
+    for (uint y = 0u; y < uint(TILE); ++y) {
+        for (uint x = 0u; x < uint(TILE); ++x) {
+            uvec2 child = node * uint(TILE) + uvec2(x, y);
+            if (any(greaterThanEqual(child, child_size))) continue;
+            if (level == 1u) {
+                vec4 p = sample_position(child);
+                if (p.w < 0.5) continue;
+                lo = min(lo, p.xyz);
+                hi = max(hi, p.xyz);
+            } else {
+                uint index = child_first + child.y * child_size.x + child.x;
+                lo = min(lo, boxes[2u * index].xyz);
+                hi = max(hi, boxes[2u * index + 1u].xyz);
+            }
+        }
+    }
+    uint index = node_first + node.y * node_size.x + node.x;
+    boxes[2u * index] = vec4(lo, 0.0);
+    boxes[2u * index + 1u] = vec4(hi, 0.0);
+}

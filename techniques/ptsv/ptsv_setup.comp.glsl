@@ -1,0 +1,77 @@
+// One invocation per scene triangle: its shadow volume's four planes from the frame's light,
+// then the root test. Edge-on triangles cast no volume (as sv's per-triangle volumes), nor do a
+// closed part's triangles turned from the light; every other triangle casts, turned toward the
+// light (an open part's back-facing triangle shadows as much as a front-facing one). A volume
+// the root box lies outside of is culled; one that holds the root box marks the root; any
+// other is queued for the level below the root.
+#include "ptsv_volume.glsl"
+
+layout(local_size_x = 64) in;
+layout(std430, binding = 0) readonly buffer Vertices { float vertex_data[]; };  // xyz per vertex
+layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 3 per triangle
+// per triangle: 0 in an open part; in a closed part 1 where its winding turns it outward, -1
+// inward. A closed part's light-facing triangles shadow all that it does (a segment from a
+// point outside it, or on it, to the light leaves it through one), so the others are culled.
+layout(std430, binding = 8) readonly buffer Closed { int closed_side[]; };
+// (position, 1) for a spot or point light, (-direction, 0) directional
+uniform vec4 light_vector;
+uniform uint first_triangle;  // this batch's triangles: first_triangle .. triangle_end - 1
+uniform uint triangle_end;
+uniform uint root;  // the root's node number
+uniform uint root_level;
+
+vec3 corner(uint triangle, uint k) {
+    uint i = 3u * index_data[3u * triangle + k];
+    return vec3(vertex_data[i], vertex_data[i + 1u], vertex_data[i + 2u]) - origin;
+}
+
+// The plane through the edge from p to q (p the end of smaller vertex index, so the two
+// triangles sharing the edge compute the same plane) and the light, turned so that `inner`
+// lies on its negative side (an exact negation).
+vec4 edge_plane(vec3 p, vec3 q, vec4 light, vec3 inner) {
+    vec3 n = normalize(cross(q - p, light.xyz - p * light.w));
+    vec4 plane = vec4(n, -dot(n, p));
+    return dot(n, inner - p) > 0.0 ? -plane : plane;
+}
+
+void main() {
+    uint triangle = first_triangle
+        + (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
+        + gl_LocalInvocationIndex;
+    if (triangle >= triangle_end) return;
+    vec3 p[3] = vec3[3](corner(triangle, 0u), corner(triangle, 1u), corner(triangle, 2u));
+    vec3 n = cross(p[1] - p[0], p[2] - p[0]);
+    vec4 light = vec4(light_vector.xyz - origin * light_vector.w, light_vector.w);
+    vec3 to_light = light.xyz - p[0] * light.w;
+    float facing = dot(n, to_light);
+    if (abs(facing) <= EDGE_ON * length(n) * length(to_light)
+        || float(closed_side[triangle]) * facing < 0.0) {
+        TALLY(COUNT_CULLED);
+        return;
+    }
+    vec4 volume[4];
+    // the triangle's plane: the light on its positive side, so the shadow is behind it
+    vec3 toward = normalize(facing > 0.0 ? n : -n);
+    volume[0] = vec4(toward, -dot(toward, p[0]));
+    for (int k = 0; k < 3; ++k) {
+        int a = k, b = (k + 1) % 3;
+        bool ordered = index_data[3u * triangle + uint(a)] < index_data[3u * triangle + uint(b)];
+        volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
+    }
+    TALLY(COUNT_NODE_TESTS);
+    vec3 lo, hi;
+    node_box(root, lo, hi);
+    int test = classify(volume, lo, hi);
+    if (test < 0) {
+        TALLY(COUNT_CULLED);
+    } else if (test > 0) {
+        mark_node(root);
+        TALLY(COUNT_ACCEPTS);
+        TALLY(COUNT_ROOT_ACCEPTS);
+    } else {
+        uint queued = atomicAdd(counters[COUNT_VOLUMES], 1u);
+        if (queued >= volume_capacity) return;  // counted: the caller makes room, runs again
+        for (uint k = 0u; k < 4u; ++k) planes[4u * queued + k] = volume[k];
+        push(root_level, queued, 0u);
+    }
+}

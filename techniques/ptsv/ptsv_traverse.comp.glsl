@@ -1,0 +1,48 @@
+// One level of the traversal: each queued (volume, node) item of level `level` tests the
+// node's TILE x TILE children against the volume, one invocation per child. Below level 1 the
+// children are samples (the G-buffer's positions at the mask's resolution): one inside the
+// volume is marked shadowed. Above it they are nodes: one outside is skipped, one inside is
+// marked shadowed as a whole, any other is queued for the next level down. A child already
+// marked (by another volume) is skipped: marks only ever go from lit to shadowed. ITEMS_PER_GROUP
+// items share a work group; nothing depends on the subgroup's size.
+#include "ptsv_volume.glsl"
+#include "ptsv_samples.glsl"
+
+#define CHILDREN (TILE * TILE)
+layout(local_size_x = GROUP_SIZE) in;  // CHILDREN * ITEMS_PER_GROUP
+uniform uint level;  // the queued nodes' level (>= 1)
+uniform uint node_width;  // nodes per row at that level
+uniform uvec2 child_size;  // children (nodes or samples) per row and column at level - 1
+uniform uint child_first;  // node number of level - 1's first node (level > 1)
+
+void main() {
+    uint item = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * ITEMS_PER_GROUP
+        + gl_LocalInvocationIndex / CHILDREN;
+    if (item >= min(counters[COUNT_LEVELS + level], capacity)) return;
+    uvec2 queued = items[(level & 1u) * capacity + item];
+    uint c = gl_LocalInvocationIndex % CHILDREN;
+    uvec2 child = uvec2(queued.y % node_width, queued.y / node_width) * TILE
+        + uvec2(c % TILE, c / TILE);
+    if (any(greaterThanEqual(child, child_size))) return;
+    uint index = child.y * child_size.x + child.x;
+    vec4 volume[4] = volume_planes(queued.x);
+    if (level == 1u) {
+        vec4 p = sample_position(child);
+        if (p.w < 0.5 || marks[index] != 0u) return;  // already shadowed: nothing to learn
+        TALLY(COUNT_SAMPLE_TESTS);
+        if (inside_volume(volume, p.xyz)) marks[index] = 1u;
+        return;
+    }
+    if (marks[sample_count + child_first + index] != 0u) return;  // shadowed whole already
+    vec3 lo, hi;
+    node_box(child_first + index, lo, hi);
+    if (any(greaterThan(lo, hi))) return;
+    TALLY(COUNT_NODE_TESTS);
+    int test = classify(volume, lo, hi);
+    if (test > 0) {
+        mark_node(child_first + index);
+        TALLY(COUNT_ACCEPTS);
+    } else if (test == 0) {
+        push(level - 1u, queued.x, index);
+    }
+}

@@ -1,0 +1,89 @@
+// The buffers every ptsv kernel shares and the tests of a triangle's shadow volume (Sintorn et
+// al. 2011): the triangle's plane, turned so the light lies on its positive side, and the
+// three planes through its edges and the light, turned so the triangle lies on their negative
+// side. Positions are taken relative to `origin` (the scene's centre, a float32 value: the
+// subtraction is exact near it), so that planes keep their precision far from the world's
+// origin. A point is inside the volume where it is behind the triangle's plane by more than
+// `tie` (the receiver's own triangle is no caster) and on the negative side of all three edge
+// planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
+layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // 4 per queued triangle
+layout(std430, binding = 3) buffer Boxes { vec4 boxes[]; };  // per node: min, max (xyz)
+layout(std430, binding = 4) buffer Marks { uint marks[]; };  // samples, then nodes per level
+layout(std430, binding = 5) buffer Queues { uvec2 items[]; };  // (volume, node), 2 regions
+// COUNT_* entries, then per level the items queued for it (each level's queue region holds at
+// most `capacity` of them)
+layout(std430, binding = 6) buffer Counters { uint counters[]; };
+
+#define COUNT_VOLUMES 0u       // triangles whose volume is queued (rows of `planes`)
+#define COUNT_CULLED 1u        // triangles culled before traversal (edge-on, or miss the root)
+#define COUNT_NODE_TESTS 2u    // node-volume tests (the root's included)
+#define COUNT_ACCEPTS 3u       // nodes found inside a volume and marked whole
+#define COUNT_ROOT_ACCEPTS 4u  // of those, at the root
+#define COUNT_SAMPLE_TESTS 5u  // sample-volume tests at the leaves
+#define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
+
+uniform vec3 origin;
+uniform float tie;  // how far behind its own plane a point must be to be shadowed
+uniform uint capacity;  // items per queue region
+uniform uint volume_capacity;  // rows of 4 planes in `planes`
+uniform uint sample_count;  // marks before the nodes': node i's mark is sample_count + i
+
+#ifdef COUNT
+#define TALLY(what) atomicAdd(counters[what], 1u)
+#else
+#define TALLY(what)
+#endif
+
+// A point exactly on an edge plane is inside for one of the two triangles sharing the edge: as
+// if moved a little along +x (then +y, +z). Both compute that plane from the same ordered
+// ends (ptsv_setup.comp.glsl), so their distances are exact negatives and no ray slips between.
+bool inside_edge(vec4 plane, vec3 p) {
+    float d = dot(plane.xyz, p) + plane.w;
+    if (d != 0.0) return d < 0.0;
+    vec3 n = plane.xyz;
+    return n.x != 0.0 ? n.x < 0.0 : (n.y != 0.0 ? n.y < 0.0 : n.z < 0.0);
+}
+
+// -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
+// wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
+// edge plane counts as partly, so the samples there meet the tie-break above).
+int classify(vec4 volume[4], vec3 lo, vec3 hi) {
+    bool inside = true;
+    for (int k = 0; k < 4; ++k) {
+        vec4 plane = volume[k];
+        vec3 a = plane.xyz * lo, b = plane.xyz * hi;
+        vec3 near = min(a, b), far = max(a, b);
+        float nearest = plane.w + near.x + near.y + near.z;
+        float furthest = plane.w + far.x + far.y + far.z;
+        if (k == 0 ? nearest >= -tie : nearest > 0.0) return -1;
+        if (k == 0 ? furthest >= -tie : furthest >= 0.0) inside = false;
+    }
+    return inside ? 1 : 0;
+}
+
+bool inside_volume(vec4 volume[4], vec3 p) {
+    return dot(volume[0].xyz, p) + volume[0].w < -tie && inside_edge(volume[1], p)
+        && inside_edge(volume[2], p) && inside_edge(volume[3], p);
+}
+
+vec4[4] volume_planes(uint volume) {
+    uint base = 4u * volume;
+    return vec4[4](planes[base], planes[base + 1u], planes[base + 2u], planes[base + 3u]);
+}
+
+// A node's box; empty (lo > hi) where none of its samples is covered.
+void node_box(uint node, out vec3 lo, out vec3 hi) {
+    lo = boxes[2u * node].xyz;
+    hi = boxes[2u * node + 1u].xyz;
+}
+
+void mark_node(uint node) {
+    marks[sample_count + node] = 1u;
+}
+
+// Queue (volume, node) for level `level` (region level & 1); counted even past the capacity,
+// so the caller sees an overflow and runs the traversal again with room for it.
+void push(uint level, uint volume, uint node) {
+    uint slot = atomicAdd(counters[COUNT_LEVELS + level], 1u);
+    if (slot < capacity) items[(level & 1u) * capacity + slot] = uvec2(volume, node);
+}
