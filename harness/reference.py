@@ -100,7 +100,7 @@ def choose_variant() -> str:
     return "scalar_rgb"
 
 
-def _mitsuba(variant: str):
+def mitsuba_module(variant: str):
     import mitsuba as mi
 
     if mi.variant() != variant:
@@ -362,7 +362,7 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
         return cached
     _check_finite(scene)
     variant = variant or choose_variant()
-    mi = _mitsuba(variant)
+    mi = mitsuba_module(variant)
     start = time.perf_counter()
     try:
         mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples, seed))

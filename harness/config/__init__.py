@@ -23,7 +23,7 @@ from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Ca
                            load_scenes, square_number)
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
                           read_yaml, validation_error)
-from .yaml_source import _line_of as _line_of  # the planner names the line of a bad grid point
+from .yaml_source import line_of  # the planner names the line of a bad grid point
 
 __all__ = [
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
@@ -33,7 +33,7 @@ __all__ = [
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
     "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "TriangleCount", "TypesAsWritten", "Vec3",
-    "cache_root", "check_name", "check_resolution", "key_error",
+    "cache_root", "check_name", "check_resolution", "key_error", "line_of",
     "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path",
     "square_number", "validation_error", "with_timing",
 ]

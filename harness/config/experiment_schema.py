@@ -12,7 +12,7 @@ from pydantic import ConfigDict, Field, ValidationError, field_validator, model_
 from ..timing import STATISTICS
 from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET, MAX_RUNS
 from .scene_schema import SquareInt, Strict, TriangleCount
-from .yaml_source import ConfigError, _line_of, key_error, read_yaml, validation_error
+from .yaml_source import ConfigError, line_of, key_error, read_yaml, validation_error
 
 Scalar = Union[bool, int, float, str]
 
@@ -224,7 +224,7 @@ def _no_repeats(path: Path, node, scenes: list[str]) -> None:
     first: dict[str, int] = {}
     for i, name in enumerate(scenes):
         if name in first:
-            where = [f"{path}:{_line_of(node, ('scenes', j))} (scenes.{j})"
+            where = [f"{path}:{line_of(node, ('scenes', j))} (scenes.{j})"
                      for j in (first[name], i)]
             raise key_error(path, node, ("scenes", i),
                             f"scene {name!r} is listed twice, at {' and '.join(where)}")

@@ -19,7 +19,7 @@ import numpy as np
 
 from .cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from .limits import MAX_COORDINATE
-from .mesh_formats import (_gltf_json, check_numbers, check_vertices, declared_triangles,
+from .mesh_formats import (gltf_json, check_numbers, check_vertices, declared_triangles,
                            mesh_format, read_parts)
 from .mesh_obj import SHORT_FACES
 from .yaml_source import check_regular_file, key_error
@@ -133,7 +133,7 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     declared_triangles(mesh_path, fmt)  # a lying header is named before trimesh misreads it
     check_numbers(data, fmt)
     if fmt == "gltf":  # a GLB's buffer is its binary chunk
-        _check_data_uris(_gltf_json(data))
+        _check_data_uris(gltf_json(data))
     try:
         found, skipped = read_parts(mesh_path, fmt)
     except ValueError:

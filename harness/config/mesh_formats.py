@@ -55,7 +55,7 @@ def declared_triangles(path, fmt: str, stop_after: int | None = None) -> int:
             return _off_faces(head)
         if fmt == "glb":
             return _gltf_triangles(_glb_json(head, f))
-        return _gltf_triangles(_gltf_json(head + f.read()))
+        return _gltf_triangles(gltf_json(head + f.read()))
 
 
 def _stl_binary(data: bytes, size: int | None = None) -> bool:
@@ -109,7 +109,7 @@ def _off_faces(head: bytes) -> int:
     return int(words[2])
 
 
-def _gltf_json(data: bytes) -> dict:
+def gltf_json(data: bytes) -> dict:
     try:
         return json.loads(data)
     except (ValueError, UnicodeDecodeError):

@@ -34,7 +34,7 @@ def check_name(kind: str, name: str) -> str:
     return name
 
 
-def _line_of(node, path: tuple) -> int | None:
+def line_of(node, path: tuple) -> int | None:
     """Line (1-based) of the deepest YAML node reachable along a pydantic error location."""
     line = None
     for key in path:
@@ -136,7 +136,7 @@ def _error_line(path: Path, error: dict, root_node, prefix: tuple,
         # check naming its key, or a key below it (``0.name`` of a list)
         loc, msg = loc + tuple(int(p) if p.isdigit() else p for p in path_in_model), rest
     keypath = ".".join(str(p) for p in loc)
-    line = _line_of(root_node, loc)
+    line = line_of(root_node, loc)
     where = f"{path}:{line}" if line else str(path)
     return rank, keypath, f"{where}: {keypath}: {msg}"
 
@@ -246,6 +246,6 @@ def _check_nodes(path: Path, root) -> None:
 
 def key_error(path: Path, node, loc: tuple, message: str) -> ConfigError:
     """A ConfigError for a key path found invalid after schema validation."""
-    line = _line_of(node, loc) if node is not None else None
+    line = line_of(node, loc) if node is not None else None
     where = f"{path}:{line}" if line else str(path)
     return ConfigError(f"{where}: {'.'.join(map(str, loc))}: {message}")

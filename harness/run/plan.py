@@ -214,7 +214,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                 if count > largest:
                     largest, largest_loc = count, loc
     if raw > min(max(4 * exp.max_runs, 10_000), cfg.MAX_RUNS):  # the points are made next
-        line = cfg._line_of(node, largest_loc) if node is not None else None
+        line = cfg.line_of(node, largest_loc) if node is not None else None
         worst = (f"; {'.'.join(map(str, largest_loc))}{f' (line {line})' if line else ''} gives "
                  f"{'all' if largest == raw else f'{largest:,}'} of them")
         raise cfg.ConfigError(f"{exp_path}: plans {raw:,} runs before duplicate points are merged, "
@@ -227,7 +227,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
                 for grid, grid_loc in tech_grids:
                     for combo, loc in grid_points(registered[tech], grid, grid_loc, exp_path,
                                                   node):
-                        line = cfg._line_of(node, loc) if node is not None else None
+                        line = cfg.line_of(node, loc) if node is not None else None
                         where = (f"{exp_path}{f':{line}' if line else ''}: "
                                  + ".".join(map(str, loc)))
                         where = where if experiment_path else "--set"

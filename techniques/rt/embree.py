@@ -42,7 +42,7 @@ def shadow_rays(position, normal, directional: bool, light, camera_position):
 
 class EmbreeRays:
     def __init__(self, scene):
-        self.mi = reference._mitsuba(reference.choose_variant())
+        self.mi = reference.mitsuba_module(reference.choose_variant())
         self._build(scene)
 
     def _build(self, scene) -> None:

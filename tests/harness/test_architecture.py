@@ -168,3 +168,34 @@ def test_the_independence_contract_names_every_technique_package():
     packages = {f"techniques.{p.name}" for p in (ROOT / "techniques").iterdir()
                 if (p / "__init__.py").is_file() and p.name != "common"}
     assert set(independent["modules"]) == packages
+
+
+def private_names_used_across_modules(root: Path) -> list[str]:
+    """``module: name`` for each underscore name a module imports from, or reads off, another
+    project module (``from .x import _y``, ``x._y(...)`` on an imported project module)."""
+    found = []
+    for top in ("harness", "techniques", "papers"):
+        for path in (root / top).rglob("*.py"):
+            module = ".".join(path.relative_to(root).with_suffix("").parts)
+            tree = ast.parse(path.read_text())
+            imported = set()
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").split(
+                        ".")[0] in ("harness", "techniques", "papers")):
+                    for alias in node.names:
+                        imported.add(alias.asname or alias.name)
+                        if alias.name.startswith("_") and not alias.name.startswith("__"):
+                            found.append(f"{module}: {alias.name}")
+            for node in ast.walk(tree):
+                if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                        and node.value.id in imported and node.attr.startswith("_")
+                        and not node.attr.startswith("__")):
+                    found.append(f"{module}: {node.value.id}.{node.attr}")
+    return sorted(set(found))
+
+
+def test_names_used_across_modules_are_public():
+    """No module reaches into another's underscore names. Catches measure.py importing
+    score.py's seven private helpers and sweep.py and cli.py using store._exclusive (as before
+    issue 31; found by this test then)."""
+    assert private_names_used_across_modules(ROOT) == []

@@ -228,7 +228,7 @@ def test_scalar_and_llvm_variants_agree(scene_at, tmp_path, monkeypatch):
     scene = scene_at("box_plane", 64)
     fast = compute_reference(scene, samples=4, variant="llvm_ad_rgb", use_cache=False)
     slow = compute_reference(scene, samples=4, variant="scalar_rgb", use_cache=False)
-    ref_mod._mitsuba("llvm_ad_rgb")
+    ref_mod.mitsuba_module("llvm_ad_rgb")
     assert np.array_equal(fast.covered, slow.covered)
     assert (fast.visibility != slow.visibility).sum() <= 1
     assert np.abs(fast.visibility - slow.visibility).max() <= 0.25  # at most one sample of 4
