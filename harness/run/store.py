@@ -15,7 +15,9 @@ from .plan import RunSpec
 
 
 def utc_now() -> str:
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    # milliseconds: an invocation's wall time (finished - started) feeds `shadowbench plan`'s
+    # estimate, and a short one read in whole seconds was 0 (no estimate)
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="milliseconds")
 
 
 def reference_array_path(scene: str, width: int, height: int, samples: int, seed: int) -> Path:

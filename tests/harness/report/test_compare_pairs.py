@@ -55,4 +55,4 @@ def test_a_better_pair_exits_0_and_the_messages_name_the_users_paths(tmp_path, m
     missing = tmp_path / "no" / "diff.html"
     assert shadowbench(["compare", str(a), str(b), "--html", str(missing)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"shadowbench: {missing}: No such file or directory"], err
+    assert err == [f"shadowbench: --html {missing}: No such file or directory"], err
