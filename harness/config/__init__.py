@@ -14,13 +14,14 @@ from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, Sce
                                 load_experiment, with_timing)
 from .limits import (DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MAX_RUNS, MIN_FOV,
                      NAME_PATTERN)
+from .field_types import Coordinate, FieldOfView, Size, SquareInt, Strict, Vec3, square_number
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
-from .scene_schema import (LIGHT_TYPES, MAX_ORBIT_DEG, MIN_DOLLY, Array, Box, Camera, Capsule,
-                           Coordinate, Cylinder, DirectionalLight, Family, FieldOfView, Lathe,
-                           Light, MeshFile, Motion, ObjectMotion, Placed, Plane, PointLight,
-                           Scene, SceneFile, SceneObject, Size, Sphere, SpotLight, SquareInt,
-                           Strict, TriangleCount, TypesAsWritten, Vec3, check_resolution,
-                           load_scenes, square_number)
+from .motion_schema import MAX_ORBIT_DEG, MIN_DOLLY, Motion, ObjectMotion
+from .scene_schema import (LIGHT_TYPES, Array, Box, Camera, Capsule, Cylinder, DirectionalLight,
+                           Family, Lathe, Light, MeshFile, Placed, Plane, PointLight, Scene,
+                           SceneFile, SceneObject, Sphere, SpotLight, TriangleCount,
+                           check_resolution, load_scenes)
+from .types_as_written import TypesAsWritten
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
                           read_yaml, validation_error)
 from .yaml_source import line_of  # the planner names the line of a bad grid point

@@ -11,7 +11,8 @@ from pydantic import ConfigDict, Field, ValidationError, field_validator, model_
 
 from ..timing import STATISTICS
 from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET, MAX_RUNS
-from .scene_schema import SquareInt, Strict, TriangleCount
+from .field_types import SquareInt, Strict
+from .scene_schema import TriangleCount
 from .yaml_source import ConfigError, line_of, key_error, read_yaml, validation_error
 
 Scalar = Union[bool, int, float, str]

@@ -1,5 +1,5 @@
-"""Config's scene schema, above yaml_source and mesh_files: camera, lights, shapes, motion and
-the scene file, and load_scenes, which validates one; experiment_schema builds on its Strict."""
+"""Config's scene schema, above yaml_source, mesh_files, field_types and motion_schema: camera,
+lights, shapes and the scene file, and load_scenes, which validates one."""
 
 from __future__ import annotations
 
@@ -8,45 +8,13 @@ from pathlib import Path
 from typing import Annotated, Literal, Union, get_args
 
 import numpy as np
-from pydantic import (AfterValidator, BeforeValidator, ConfigDict, Field,
-                      ValidationError, field_validator, model_validator)
+from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
 
-from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MIN_FOV
+from .field_types import Coordinate, FieldOfView, Size, Strict, Vec3, vector_norm
+from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO
 from .mesh_files import check_mesh
-from .types_as_written import TypesAsWritten
+from .motion_schema import Motion
 from .yaml_source import check_name, key_error, read_yaml, validation_error
-
-Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
-Size = Annotated[float, Field(gt=0, le=MAX_COORDINATE)]
-Vec3 = tuple[Coordinate, Coordinate, Coordinate]
-
-
-def _field_of_view(value: float) -> float:
-    if not MIN_FOV <= value < 180:
-        raise ValueError(f"must be in [{MIN_FOV}, 180), got {value}")
-    return value
-
-
-FieldOfView = Annotated[float, AfterValidator(_field_of_view)]
-
-
-def square_number(value: int) -> int:
-    """Validate a square sample count (a sqrt(n) x sqrt(n) grid)."""
-    if value < 1 or math.isqrt(value) ** 2 != value:
-        raise ValueError(f"must be a square number (1, 4, 9, 16, 25, ...), got {value}")
-    return value
-
-
-SquareInt = Annotated[int, AfterValidator(square_number)]
-
-
-
-class Strict(TypesAsWritten):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-def _norm(v) -> float:
-    return float(np.linalg.norm(np.asarray(v, dtype=float)))
 
 
 class Camera(Strict):
@@ -66,11 +34,11 @@ class Camera(Strict):
                              f"buffer resolves at most {MAX_DEPTH_RATIO} (2^20): raise near or "
                              "lower far")
         view = np.subtract(self.target, self.position)
-        if _norm(view) == 0:
+        if vector_norm(view) == 0:
             raise ValueError("target: equals position")
-        if _norm(self.up) == 0:
+        if vector_norm(self.up) == 0:
             raise ValueError("up: must not be the zero vector")
-        if _norm(np.cross(view / _norm(view), np.asarray(self.up) / _norm(self.up))) < 1e-6:
+        if vector_norm(np.cross(view / vector_norm(view), np.asarray(self.up) / vector_norm(self.up))) < 1e-6:
             raise ValueError("up: is parallel to the view direction")
         return self
 
@@ -82,7 +50,7 @@ class DirectionalLight(Strict):
     @field_validator("direction")
     @classmethod
     def _nonzero(cls, v):
-        if _norm(v) == 0:
+        if vector_norm(v) == 0:
             raise ValueError("must not be the zero vector")
         return v
 
@@ -95,7 +63,7 @@ class SpotLight(Strict):
 
     @model_validator(mode="after")
     def _aim(self):
-        if _norm(np.subtract(self.target, self.position)) == 0:
+        if vector_norm(np.subtract(self.target, self.position)) == 0:
             raise ValueError("target: equals position")
         return self
 
@@ -294,62 +262,6 @@ def check_resolution(size):
     if not all(16 <= x <= 8192 for x in size):
         raise ValueError(f"width and height must be in [16, 8192], got {list(size)}")
     return size
-
-
-MAX_ORBIT_DEG = 3600.0  # ten turns: more is a typo, not a path
-MIN_DOLLY = -10.0  # backing away to eleven times the starting distance
-Degrees = Annotated[float, Field(ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG)]
-
-
-def _axis(v):
-    if v is not None and _norm(v) == 0:
-        raise ValueError("must not be the zero vector")
-    return v
-
-
-Axis = Annotated[Vec3 | None, AfterValidator(_axis)]
-
-
-class ObjectMotion(Strict):
-    """One object's rigid path (its array copies move with it): ``object`` is its index in
-    ``objects`` or its ``name``. It spins by ``spin`` degrees about ``spin_axis`` through its
-    own centre (the centre of its bounds as written), then orbits by ``orbit`` degrees about
-    ``orbit_axis`` through ``centre`` (the centre of the scene's bounds as written unless
-    given), then moves by ``translate``; an axis not given is the camera's up. Frame t is at
-    t / (frames - 1) of each (harness/motion.py)."""
-
-    object: Union[Annotated[int, Field(ge=0)], str]
-    spin: Degrees = 0.0
-    spin_axis: Axis = None
-    orbit: Degrees = 0.0
-    orbit_axis: Axis = None
-    centre: Vec3 | None = None
-    translate: Vec3 = (0.0, 0.0, 0.0)
-
-
-class Motion(Strict):
-    """A moving scene: over ``frames`` frames the camera orbits its target about its up axis
-    by ``camera_orbit`` degrees in total, the light (a directional light's direction; a spot
-    light's position and target together; a point light's position) turns about the up axis
-    through the centre of the scene's bounds by ``light_orbit`` degrees, and the camera moves
-    toward its target by the fraction ``camera_dolly`` of its distance (negative: away);
-    ``objects`` move along their own paths (:class:`ObjectMotion`). Frame t is at
-    t / (frames - 1) of each path, so the first frame is the scene as written and the last
-    ends the paths (harness/motion.py)."""
-
-    frames: int = Field(ge=2, le=1000)
-    camera_orbit: Degrees = 0.0
-    light_orbit: Degrees = 0.0
-    camera_dolly: float = Field(0.0, ge=MIN_DOLLY)
-    objects: list[ObjectMotion] = []
-
-    @field_validator("camera_dolly")
-    @classmethod
-    def _short_of_the_target(cls, v):
-        if v >= 1:
-            raise ValueError(f"must be < 1: a dolly of 1 or more reaches or passes through the "
-                             f"camera's target, got {v}")
-        return v
 
 
 class Scene(Strict):
