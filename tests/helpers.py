@@ -9,6 +9,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 from contextlib import contextmanager
@@ -299,3 +300,29 @@ def real_corpus(scene) -> bool:
     """A scene built from a mesh file shipped inside an installed package (issue 32's corpus,
     10^4 to 10^5 triangles of real exporters' geometry)."""
     return any(getattr(obj, "package", None) for obj in scene.objects)
+
+
+CHROMIUM = os.environ.get("SHADOWBENCH_CHROMIUM", "/usr/bin/chromium")
+CHROMEDRIVER = os.environ.get("SHADOWBENCH_CHROMEDRIVER", "/usr/bin/chromedriver")
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync"]
+
+
+def chromium(profile: Path, width: int = 1400, height: int = 1000):
+    """Debian's headless Chromium driven by selenium, its window ``width`` x ``height``, the
+    browser's console kept; a test fails (never skips) where it is not installed."""
+    missing = [p for p in (CHROMIUM, CHROMEDRIVER) if not shutil.which(p)]
+    if missing:
+        pytest.fail(f"{', '.join(missing)} not found: install Debian's chromium and "
+                    "chromium-driver (make setup does), or set SHADOWBENCH_CHROMIUM and "
+                    "SHADOWBENCH_CHROMEDRIVER")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in CHROMIUM_FLAGS + [f"--user-data-dir={profile}", f"--window-size={width},{height}"]:
+        options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)

@@ -7,19 +7,15 @@ asserted: timings here are the machine's, not the page's).
 
 from __future__ import annotations
 
-import os
 import shutil
 import time
 
 import pytest
 
+from helpers import chromium
+
 from harness import report
 
-CHROMIUM = os.environ.get("SHADOWBENCH_CHROMIUM", "/usr/bin/chromium")
-CHROMEDRIVER = os.environ.get("SHADOWBENCH_CHROMEDRIVER", "/usr/bin/chromedriver")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--window-size=1400,1000"]
 DRAW_TIMEOUT_S = 60
 LOAD_TIMES = """
     const t = performance.getEntriesByType("navigation")[0];
@@ -37,20 +33,7 @@ def page(tmp_path_factory, gl_context):
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    missing = [p for p in (CHROMIUM, CHROMEDRIVER) if not shutil.which(p)]
-    if missing:
-        pytest.fail(f"{', '.join(missing)} not found: install Debian's chromium and "
-                    "chromium-driver (make setup does), or set SHADOWBENCH_CHROMIUM and "
-                    "SHADOWBENCH_CHROMEDRIVER")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in FLAGS + [f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}"]:
-        options.add_argument(flag)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver = chromium(tmp_path_factory.mktemp("chromium-profile"))
     yield driver
     driver.quit()
 

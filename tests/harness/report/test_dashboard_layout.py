@@ -15,9 +15,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
-import shutil
 import time
 from pathlib import Path
 
@@ -27,10 +25,6 @@ from harness import report
 from harness.cli import main as shadowbench
 
 ROOT = Path(__file__).resolve().parents[3]  # the repository (run as a script too: main)
-CHROMIUM = os.environ.get("SHADOWBENCH_CHROMIUM", "/usr/bin/chromium")
-CHROMEDRIVER = os.environ.get("SHADOWBENCH_CHROMEDRIVER", "/usr/bin/chromedriver")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 WAIT_S = 60
 # today's panels were 400 px wide in a 1343 px column; a panel at 1400 px is at least twice that
 WIDE, NARROW, WIDE_PANEL_MIN = 1400, 900, 800
@@ -80,21 +74,9 @@ return boxes.every(b => b.querySelector('svg.chart') || b.textContent.includes('
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    missing = [p for p in (CHROMIUM, CHROMEDRIVER) if not shutil.which(p)]
-    if missing:
-        pytest.fail(f"{', '.join(missing)} not found: install Debian's chromium and "
-                    "chromium-driver (make setup does), or set SHADOWBENCH_CHROMIUM and "
-                    "SHADOWBENCH_CHROMEDRIVER")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
+    from helpers import chromium  # here: the module also runs as a script (main)
 
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in FLAGS + [f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}",
-                         f"--window-size={WIDE},1000"]:
-        options.add_argument(flag)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver = chromium(tmp_path_factory.mktemp("chromium-profile"), WIDE)
     yield driver
     driver.quit()
 
@@ -281,16 +263,13 @@ def main(index: str) -> int:
     """``python tests/harness/report/test_dashboard_layout.py DIR/index.html``: the
     test's measurement on any built page: overlapping label pairs and chart widths per view and
     width."""
+    import sys
     import tempfile
 
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
+    sys.path.insert(0, str(ROOT / "tests"))  # run as a script: tests/helpers.py
+    from helpers import chromium as start_chromium
 
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in FLAGS + [f"--user-data-dir={tempfile.mkdtemp()}", f"--window-size={WIDE},1000"]:
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver = start_chromium(Path(tempfile.mkdtemp()), WIDE)
     try:
         found = layout(driver, Path(index).resolve().as_uri())
     finally:
