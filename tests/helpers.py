@@ -326,3 +326,15 @@ def chromium(profile: Path, width: int = 1400, height: int = 1000):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+
+
+def render_once(technique, frame):
+    """One measured frame of ``technique`` on ``frame`` (prepare, update, render), then the
+    technique released and GL state reset; returns its ShadowOutput."""
+    technique.prepare(frame)
+    technique.update(frame)
+    frame.meter.new_frame(True)
+    output = technique.render(frame)
+    technique.release()
+    reset_gl_state()
+    return output

@@ -15,11 +15,11 @@ Broken versions each test was run against once (and failed):
 
 import numpy as np
 import pytest
-from helpers import ROOT, SCENE_FILE
+from helpers import ROOT, SCENE_FILE, render_once
 
 from harness import config, metrics
 from harness.scene import load_scene
-from harness.technique import Frame, reset_gl_state
+from harness.technique import Frame
 from techniques.ptsv import PerTriangleShadowVolumes
 from techniques.sv.sv import ShadowVolumes
 
@@ -53,13 +53,7 @@ scenes:
 
 def _render(cls, frame: Frame, **params):
     technique = cls(cls.Params(**params))
-    technique.prepare(frame)
-    technique.update(frame)
-    frame.meter.new_frame(True)
-    output = technique.render(frame)
-    technique.release()
-    reset_gl_state()
-    return output
+    return render_once(technique, frame)
 
 
 def exact_shadow(points: np.ndarray, triangles: np.ndarray, light, slack: float,
@@ -107,20 +101,6 @@ def _differences(frame: Frame, ptsv_v: np.ndarray, sv_v: np.ndarray) -> tuple[in
     right = ~tie & ((ptsv_v[at[:, 0], at[:, 1]] < 0.5) == tight)
     return (int((differ & ~lit).sum()), int(tie.sum()), int(right.sum()),
             int((~tie & ~right).sum()))
-
-
-@pytest.fixture(scope="module")
-def frames(gl_context):
-    made = {}
-
-    def frame(path, name, size=RES):
-        if (path, name, size) not in made:
-            made[(path, name, size)] = Frame(load_scene(name, path).with_resolution(size, size))
-        return made[(path, name, size)]
-
-    yield frame
-    for f in made.values():
-        f.release()
 
 
 @pytest.mark.parametrize("path,name", SCENES, ids=[n for _, n in SCENES])

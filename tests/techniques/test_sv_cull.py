@@ -9,11 +9,11 @@ hard_dueling_frusta (5,747 pixels), test_cc_lowers_fill_on_a_scale_scene on its 
 
 import numpy as np
 import pytest
-from helpers import ROOT, SCENE_FILE
+from helpers import ROOT, SCENE_FILE, render_once
 
 from harness import config
 from harness.scene import build_scene, load_scene
-from harness.technique import Frame, reset_gl_state
+from harness.technique import Frame
 from techniques.sv.sv import ShadowVolumes
 
 RES = 96
@@ -29,13 +29,7 @@ FILL_FACTOR = 1.0639  # measured; foliage at 10^4: 1.00
 
 def _render(frame: Frame, **params):
     technique = ShadowVolumes(ShadowVolumes.Params(**params))
-    technique.prepare(frame)
-    technique.update(frame)
-    frame.meter.new_frame(True)
-    output = technique.render(frame)
-    technique.release()
-    reset_gl_state()
-    return output
+    return render_once(technique, frame)
 
 
 @pytest.mark.parametrize("path,name", SCENES, ids=[n for _, n in SCENES])

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from helpers import DATA, ROOT, SCENE_FILE, real_corpus
+from helpers import DATA, ROOT, SCENE_FILE, real_corpus, render_once
 
 from harness import config
 from harness.gl.shaders import Program
-from harness.scene import Light, build_scene, load_scene
+from harness.scene import Light, build_scene
 from harness.technique import Frame, reset_gl_state
 from techniques.sv import sv_cpu
 from techniques.sv.sv import ShadowVolumes
@@ -54,31 +54,11 @@ PASS_THROUGH = DATA / "sv_passthrough.geom.glsl"
 
 
 def _render(frame: Frame, params: dict, oracle: bool = False):
-    """One frame of sv: its output and the technique (released)."""
+    """One frame of sv, with the CPU oracle's volumes where ``oracle``."""
     technique = ShadowVolumes(ShadowVolumes.Params(**params))
     if oracle:
         technique._volume_geometry = lambda f: sv_cpu.oracle(technique, f)
-    technique.prepare(frame)
-    technique.update(frame)
-    frame.meter.new_frame(True)
-    output = technique.render(frame)
-    technique.release()
-    reset_gl_state()
-    return output
-
-
-@pytest.fixture(scope="module")
-def frames(gl_context):
-    made = {}
-
-    def frame(path, name, size=RES):
-        if (path, name, size) not in made:
-            made[(path, name, size)] = Frame(load_scene(name, path).with_resolution(size, size))
-        return made[(path, name, size)]
-
-    yield frame
-    for f in made.values():
-        f.release()
+    return render_once(technique, frame)
 
 
 def _oracle_through_geometry_shader():
