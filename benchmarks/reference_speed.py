@@ -13,6 +13,9 @@ and a BSDF evaluation per sample) and the read-back of the image; the reference 
 (the first call compiles the Dr.Jit kernels; later processes load them from Dr.Jit's cache).
 The ratio is reference / direct per round: median, min and max over the rounds, on the wall
 clock and on this process's CPU time (steadier when other processes share the machine).
+``whole`` rows time all of it; ``trace`` rows only the rays, on one Mitsuba scene loaded once
+(``mi.render`` against the reference's ``trace_visibility``), since the scene build is the same
+work on both sides and, at 10^6 triangles, most of the whole.
 """
 
 from __future__ import annotations
@@ -47,6 +50,17 @@ def reference(scene, samples: int) -> None:
     compute_reference(scene, samples=samples, use_cache=False)
 
 
+def traces(scene, samples: int):
+    """(direct's rays, the reference's rays) on one loaded Mitsuba scene."""
+    import mitsuba as mi
+
+    from harness.reference import mitsuba_scene_dict, trace_visibility
+
+    mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples))
+    return (lambda: np.asarray(mi.render(mscene, spp=samples)),
+            lambda: trace_visibility(mi, mscene, scene, samples, 0))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="castle", help="a scene, or family@size (instancing@1e6)")
@@ -55,30 +69,31 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args()
 
-    from harness.reference import _mitsuba, choose_variant
+    from harness.reference import choose_variant, mitsuba_module
     from harness.scene import load_scene
 
     variant = choose_variant()
-    _mitsuba(variant)
+    mitsuba_module(variant)
     base = load_scene(args.scene)
     print(f"{variant}; {args.scene}, {args.samples} samples/pixel, {args.rounds} rounds; "
           f"load average {os.getloadavg()[0]:.2f}")
-    print(f"{'size':>10s}{'clock':>7s}{'direct s':>10s}{'ref s':>10s}{'ref/direct':>12s}"
+    print(f"{'size':>10s}{'what':>7s}{'clock':>6s}{'direct s':>10s}{'ref s':>10s}{'ref/direct':>12s}"
           f"{'min':>7s}{'max':>7s}")
     for size in args.sizes:
         scene = base.with_resolution(size, size)
-        for work in (direct, reference):
-            work(scene, args.samples)
-        rounds = [(timed(lambda: direct(scene, args.samples)),
-                   timed(lambda: reference(scene, args.samples))) for _ in range(args.rounds)]
-        for clock, label in enumerate(("wall", "cpu")):
-            d = [pair[0][clock] for pair in rounds]
-            r = [pair[1][clock] for pair in rounds]
-            ratios = [b / a for a, b in zip(d, r)]
-            print(f"{f'{size}x{size}':>10s}{label:>7s}{statistics.median(d):10.3f}"
-                  f"{statistics.median(r):10.3f}{statistics.median(ratios):12.2f}"
-                  f"{min(ratios):7.2f}{max(ratios):7.2f}")
-
+        pairs = {"whole": (lambda: direct(scene, args.samples),
+                           lambda: reference(scene, args.samples)),
+                 "trace": traces(scene, args.samples)}
+        for what, (one, other) in pairs.items():
+            one(), other()  # warm-up: compiles (or loads) the kernels
+            rounds = [(timed(one), timed(other)) for _ in range(args.rounds)]
+            for clock, label in enumerate(("wall", "cpu")):
+                d = [pair[0][clock] for pair in rounds]
+                r = [pair[1][clock] for pair in rounds]
+                ratios = [b / a for a, b in zip(d, r)]
+                print(f"{f'{size}x{size}':>10s}{what:>7s}{label:>6s}{statistics.median(d):10.3f}"
+                      f"{statistics.median(r):10.3f}{statistics.median(ratios):12.2f}"
+                      f"{min(ratios):7.2f}{max(ratios):7.2f}")
 
 if __name__ == "__main__":
     main()

@@ -183,65 +183,67 @@ def _up_for(direction: np.ndarray) -> np.ndarray:
     return any_perpendicular_up(direction)
 
 
-def _trace_pixels(mi, mscene, scene: BuiltScene, x, y, samples: int, seed: int):
-    """(V, covered) of the pixels (x, y).
+def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: int):
+    """(hit, occluded) of sample ``s`` of pixel (x, y): the primary ray through its
+    :func:`film_position` and the shadow ray from the hit.
 
-    With a JIT variant ``x`` and ``y`` are arrays and everything below is one Dr.Jit kernel:
-    per pixel a PCG32 stream seeded by a TEA hash of (seed, pixel index), a loop over the
-    ``samples`` strata (jittered film position, coherent primary ray, shadow ray from the hit),
-    and the coverage ray through the pixel centre. Our scene-dependent values are opaque
+    With a JIT variant ``x``, ``y`` and ``s`` are arrays, one lane per sample, and this is one
+    Dr.Jit kernel, as Mitsuba's own ``mi.render`` lays out its wavefront; with ``scalar_rgb``
+    they are ints and the same code runs as plain Python. Our scene-dependent values are opaque
     (Mitsuba's sensor still bakes in the film size), so Dr.Jit's kernel cache serves later
-    scenes. With ``scalar_rgb`` they are ints and the same code runs as plain Python, drawing
-    the same random numbers.
+    scenes.
     """
     import drjit as dr
 
-    width, height = dr.opaque(mi.UInt32, scene.width), dr.opaque(mi.UInt32, scene.height)
+    ray = _camera_ray(mi, mscene, scene, *film_position(mi, scene, x, y, s, samples, seed))
+    # the shadow ray needs only the hit point and the face normal
+    si = mscene.ray_intersect(ray, ray_flags=mi.RayFlags.Empty, coherent=True)
+    hit = si.is_valid()
+    light = scene.light
+    if light.type == "directional":
+        shadow_ray = si.spawn_ray(dr.opaque(mi.Vector3f, (-light.direction).tolist()))
+    else:
+        shadow_ray = si.spawn_ray_to(
+            dr.opaque(mi.Point3f, (light.position - mitsuba_origin(scene)).tolist()))
+    return hit, hit & mscene.ray_test(shadow_ray, coherent=True, active=hit)
+
+
+def film_position(mi, scene: BuiltScene, x, y, s, samples: int, seed: int):
+    """Film position (fx, fy), in pixels, of sample ``s`` of pixel (x, y): jittered in stratum
+    ``s`` of a sqrt(samples) x sqrt(samples) grid by the numbers 2s and 2s + 1 of the pixel's
+    PCG32 stream (seeded by a TEA hash of (seed, pixel index))."""
+    import drjit as dr
+
+    width = dr.opaque(mi.UInt32, scene.width)
     side = dr.opaque(mi.UInt32, math.isqrt(samples))
     rng = mi.PCG32()
     state, sequence = mi.sample_tea_32(dr.opaque(mi.UInt32, seed), y * width + x)
     rng.seed(initstate=mi.UInt64(state), initseq=mi.UInt64(sequence))
-    sensor = mscene.sensors()[0]
+    rng += mi.Int64(2 * s)
+    jitter_x, jitter_y = rng.next_float32(), rng.next_float32()
+    return (mi.Float(x) + (mi.Float(s % side) + jitter_x) / mi.Float(side),
+            mi.Float(y) + (mi.Float(s // side) + jitter_y) / mi.Float(side))
 
-    def camera_ray(fx, fy):
-        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(fx / mi.Float(width), fy / mi.Float(height)),
-                                   mi.Point2f(0.5, 0.5))
-        return ray
 
-    light = scene.light
-    if light.type == "directional":
-        to_light = dr.opaque(mi.Vector3f, (-light.direction).tolist())
+def _camera_ray(mi, mscene, scene: BuiltScene, fx, fy):
+    """The primary ray through film position (fx, fy) in pixels."""
+    import drjit as dr
 
-        def shadow_ray(si):
-            return si.spawn_ray(to_light)
-    else:
-        position = dr.opaque(mi.Point3f, (light.position - mitsuba_origin(scene)).tolist())
+    width, height = dr.opaque(mi.UInt32, scene.width), dr.opaque(mi.UInt32, scene.height)
+    ray, _ = mscene.sensors()[0].sample_ray(
+        0.0, 0.5, mi.Point2f(fx / mi.Float(width), fy / mi.Float(height)), mi.Point2f(0.5, 0.5))
+    return ray
 
-        def shadow_ray(si):
-            return si.spawn_ray_to(position)
 
-    def sample(s, rng, hits, shadowed):
-        jitter_x, jitter_y = rng.next_float32(), rng.next_float32()
-        ray = camera_ray(mi.Float(x) + (mi.Float(s % side) + jitter_x) / mi.Float(side),
-                         mi.Float(y) + (mi.Float(s // side) + jitter_y) / mi.Float(side))
-        # the shadow ray needs only the hit point and the face normal
-        si = mscene.ray_intersect(ray, ray_flags=mi.RayFlags.Empty, coherent=True)
-        hit = si.is_valid()
-        occluded = mscene.ray_test(shadow_ray(si), coherent=True, active=hit)
-        return s + 1, rng, hits + dr.select(hit, 1, 0), shadowed + dr.select(hit & occluded, 1, 0)
-
-    _, _, hits, shadowed = dr.while_loop(
-        (mi.UInt32(0), rng, mi.UInt32(0), mi.UInt32(0)),
-        lambda s, *_: s < dr.opaque(mi.UInt32, samples), sample)
-    visibility = dr.select(hits > 0, mi.Float(hits - shadowed) / mi.Float(dr.maximum(hits, 1)),
-                           1.0)
-    covered = mscene.ray_test(camera_ray(mi.Float(x) + 0.5, mi.Float(y) + 0.5), coherent=True)
-    return visibility, covered
+def _covered(mi, mscene, scene: BuiltScene, x, y):
+    """Whether the ray through the centre of pixel (x, y) hits geometry: GL's coverage rule."""
+    return mscene.ray_test(_camera_ray(mi, mscene, scene, mi.Float(x) + 0.5, mi.Float(y) + 0.5),
+                           coherent=True)
 
 
 def _strip_pixels(mi, lane, width: int, height: int):
     """(x, y) of each lane when lanes run down two-row strips (x0y0, x0y1, x1y0, ...): a SIMD
-    packet then traces a 4x2 block of pixels rather than 8x1 (up to 10% faster). An odd last row
+    packet of coverage rays then traces a 4x2 block of pixels rather than 8x1. An odd last row
     runs alone."""
     import drjit as dr
 
@@ -252,26 +254,49 @@ def _strip_pixels(mi, lane, width: int, height: int):
     return dr.select(paired, within // 2, within), 2 * strip + dr.select(paired, within % 2, 0)
 
 
-def _trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
-    """(V, covered) as (H, W) arrays: one kernel launch (JIT), or a loop over pixels (scalar)."""
+def _visibility(hits: np.ndarray, shadowed: np.ndarray) -> np.ndarray:
+    """The lit fraction of the samples that hit geometry (float32); 1 where none hit."""
+    lit = (hits - shadowed).astype(np.float32) / np.maximum(hits, 1).astype(np.float32)
+    return np.where(hits > 0, lit, np.float32(1))
+
+
+def trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
+    """(V, covered) as (H, W) arrays.
+
+    JIT variants: one lane per sample, a pixel's samples in adjacent lanes (a SIMD packet of
+    primary rays then covers one pixel), each lane adding its hit and its occlusion to its
+    pixel's tally in the same kernel (hits in the low 32 bits of a UInt64, occluded samples in
+    the high ones), as Mitsuba's film adds its samples; then a lane per pixel for the coverage
+    rays. ``scalar_rgb``: a loop over pixels and samples.
+    """
     import drjit as dr
 
     w, h = scene.width, scene.height
     if dr.is_jit_v(mi.Float):
+        lane = dr.arange(mi.UInt32, w * h * samples)
+        count = dr.opaque(mi.UInt32, samples)
+        x, y = _strip_pixels(mi, lane // count, w, h)
+        hit, occluded = _trace_samples(mi, mscene, scene, x, y, lane % count, samples, seed)
+        tally = dr.zeros(mi.UInt64, w * h)
+        dr.scatter_add(tally, dr.select(hit, mi.UInt64(1), 0) +
+                       dr.select(occluded, mi.UInt64(1 << 32), 0), y * dr.opaque(mi.UInt32, w) + x)
         x, y = _strip_pixels(mi, dr.arange(mi.UInt32, w * h), w, h)
-        lane_visibility, lane_covered = _trace_pixels(mi, mscene, scene, x, y, samples, seed)
-        visibility, covered = dr.empty(mi.Float, w * h), dr.empty(mi.Bool, w * h)
-        pixel = y * dr.opaque(mi.UInt32, w) + x
-        dr.scatter(visibility, lane_visibility, pixel)
-        dr.scatter(covered, lane_covered, pixel)
-        dr.eval(visibility, covered)
-        return (np.asarray(visibility, np.float32).reshape(h, w),
+        covered = dr.empty(mi.Bool, w * h)
+        dr.scatter(covered, _covered(mi, mscene, scene, x, y), y * dr.opaque(mi.UInt32, w) + x)
+        dr.eval(tally, covered)
+        tally = np.asarray(tally, np.uint64).reshape(h, w)
+        return (_visibility(tally & 0xFFFFFFFF, tally >> np.uint64(32)),
                 np.asarray(covered, bool).reshape(h, w))
-    visibility, covered = np.empty((h, w), np.float32), np.empty((h, w), bool)
+    hits, shadowed, covered = (np.zeros((h, w), np.int64), np.zeros((h, w), np.int64),
+                               np.empty((h, w), bool))
     for y in range(h):
         for x in range(w):
-            visibility[y, x], covered[y, x] = _trace_pixels(mi, mscene, scene, x, y, samples, seed)
-    return visibility, covered
+            for s in range(samples):
+                hit, occluded = _trace_samples(mi, mscene, scene, x, y, s, samples, seed)
+                hits[y, x] += bool(hit)
+                shadowed[y, x] += bool(occluded)
+            covered[y, x] = bool(_covered(mi, mscene, scene, x, y))
+    return _visibility(hits, shadowed), covered
 
 
 def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
@@ -367,7 +392,7 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     try:
         mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples, seed))
         built = time.perf_counter() - start
-        visibility, covered = _trace_visibility(mi, mscene, scene, samples, seed)
+        visibility, covered = trace_visibility(mi, mscene, scene, samples, seed)
         direct = None
         if "direct" in scene.config.effects:
             direct = np.asarray(mi.render(mscene, spp=samples, seed=seed), np.float32)[..., :3]

@@ -234,6 +234,31 @@ def test_scalar_and_llvm_variants_agree(scene_at, tmp_path, monkeypatch):
     assert np.abs(fast.visibility - slow.visibility).max() <= 0.25  # at most one sample of 4
 
 
+def test_each_sample_lane_draws_the_numbers_a_loop_over_the_strata_draws(scene_at):
+    """One lane per sample (issue 36, item 3): sample s of a pixel must use the numbers 2s and
+    2s + 1 of the pixel's PCG32 stream, the numbers the former loop over the strata drew in
+    turn, so the reference is the same as before, bit for bit. The expected positions come from
+    one PCG32 stream drawn in order, 16 strata of pixel (5, 3). Catches the stream advanced by
+    s instead of 2s (seen failing: sample 1 reused sample 0's y jitter as its x jitter)."""
+    import drjit as dr
+
+    mi = ref_mod.mitsuba_module("llvm_ad_rgb")
+    scene = scene_at("box_plane", 32, 24)
+    samples, side, seed, x, y = 16, 4, 7, 5, 3
+    lanes = dr.arange(mi.UInt32, samples)
+    fx, fy = ref_mod.film_position(mi, scene, mi.UInt32(x) + 0 * lanes, mi.UInt32(y) + 0 * lanes,
+                                   lanes, samples, seed)
+    rng = mi.PCG32()
+    state, sequence = mi.sample_tea_32(mi.UInt32(seed), mi.UInt32(y * scene.width + x))
+    rng.seed(initstate=mi.UInt64(state), initseq=mi.UInt64(sequence))
+    expected = []
+    for s in range(samples):
+        jitter_x, jitter_y = rng.next_float32()[0], rng.next_float32()[0]
+        expected.append((x + (s % side + jitter_x) / side, y + (s // side + jitter_y) / side))
+    np.testing.assert_allclose(np.c_[np.asarray(fx), np.asarray(fy)], expected, rtol=0, atol=1e-6)
+    assert (np.floor((np.asarray(fx) - x) * side) == np.arange(samples) % side).all()
+
+
 def test_samples_must_be_square(scene_at):
     with pytest.raises(ValueError, match="square"):
         compute_reference(scene_at("box_plane", 32), samples=8)
