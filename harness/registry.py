@@ -110,6 +110,13 @@ def baseline(among=None) -> str | None:
     return marked[0] if marked else None
 
 
+def rivals(names) -> dict[str, tuple[str, ...]]:
+    """Each registered technique among ``names`` with the rivals its class declares (a name
+    not registered here, a plugin's not installed, has none)."""
+    registered = techniques()
+    return {name: tuple(registered[name].rivals) for name in names if name in registered}
+
+
 def get(name: str) -> type[Technique]:
     registered = techniques()
     if name in registered:

@@ -88,6 +88,10 @@ class Technique:
     # dashboard's overview): one registered technique says so in its own class body, the harness
     # names none. A subclass does not inherit it (:func:`declares_baseline`).
     baseline: ClassVar[bool] = False
+    # The techniques this one is weighed against in the Scale view's crossover table, besides
+    # the baseline: those its paper or its issue asks to be compared with (rays against
+    # volumes, say). Names not in a results folder are left out there.
+    rivals: ClassVar[tuple[str, ...]] = ()
     # Light types (harness.scene.Light.type) the technique does not render, each with the
     # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
     # ``prepare``). A point light shines every way, so a technique built on one light frustum

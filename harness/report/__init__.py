@@ -84,7 +84,8 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
             hidden=len(everything) - len(shown),
             verdicts=overview.verdicts(current, shown, colours), colours=colours,
             baseline=baseline or "the baseline", stability=stability_table(shown),
-            scale=scale_view(current, colours, baseline),
+            scale=scale_view(current, colours, baseline,
+                             registry.rivals(set(current["technique"]))),
             theta=plots.theta(current, colours), papers=papers_link(folder.root))
         scenes = []
         for name in jobs:

@@ -2,8 +2,8 @@
 scene of its own): per family, each technique's cost at equal error and at its defaults against
 triangles (log-log), the exponents of its cost (:func:`harness.scaling.scaling`), the
 cost-accuracy fronts per size, and the crossover table (:func:`harness.scaling.crossover`): each
-technique against the baseline. A family run at one size gets no exponent: the view says that a
-fit needs two sizes or more."""
+technique against the baseline and against the rivals its class names. A family run at one size
+gets no exponent: the view says that a fit needs two sizes or more."""
 
 from __future__ import annotations
 
@@ -17,8 +17,11 @@ EXPONENT_METRICS = {"time_ms": "time", "frags_shadow": "shadow fragments",
                     "vertex_invocations": "vertex invocations"}
 
 
-def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict | None:
-    """Everything the Scale view shows, or None when no current run is of a family scene."""
+def scale_view(current, colours: dict[str, str], baseline: str | None,
+               rivals: dict[str, tuple[str, ...]] | None = None) -> dict | None:
+    """Everything the Scale view shows, or None when no current run is of a family scene.
+    ``rivals``: per technique, the others its crossovers weigh it against besides the
+    baseline (:attr:`harness.technique.Technique.rivals`)."""
     rows = scaling.family_rows(current)
     if rows.empty:
         return None
@@ -30,7 +33,7 @@ def scale_view(current, colours: dict[str, str], baseline: str | None) -> dict |
             "exponents": exponent_rows(rows, colours),
             "fronts": [{"title": title, "id": f"scale-front-{i}", "chart": front_chart(g, colours)}
                        for i, (title, g) in enumerate(titled)],
-            "crossovers": crossover_rows(titled, baseline), "baseline": baseline,
+            "crossovers": crossover_rows(titled, baseline, rivals or {}), "baseline": baseline,
             "metrics": list(EXPONENT_METRICS.values()), "one_size": one_size_families(rows)}
 
 
@@ -145,14 +148,27 @@ def front_chart(g, colours: dict[str, str]) -> dict:
             "y": {"title": plots.ERRORS["edge_mae"], "log": True}}
 
 
-def crossover_rows(titled, baseline: str | None) -> list[dict]:
-    """Per family and pair (a, b): where a starts to cost more than b at equal error, or why
-    there is no such size, with a / b at each size both reach the level."""
+def compared_pairs(present: set[str], baseline: str | None,
+                   rivals: dict[str, tuple[str, ...]]) -> list[tuple[str, str]]:
+    """The (a, b) pairs of the crossover table among the techniques ``present``: each against
+    the baseline, then against each of its rivals, each unordered pair once."""
+    pairs, seen = [], set()
+    for a in sorted(present):
+        for b in ((baseline,) if baseline else ()) + tuple(rivals.get(a, ())):
+            if b in present and b != a and frozenset((a, b)) not in seen:
+                seen.add(frozenset((a, b)))
+                pairs.append((a, b))
+    return pairs
+
+
+def crossover_rows(titled, baseline: str | None,
+                   rivals: dict[str, tuple[str, ...]]) -> list[dict]:
+    """Per family and pair (a, b) of :func:`compared_pairs`: where a starts to cost more than b
+    at equal error, or why there is no such size, with a / b at each size both reach the
+    level."""
     out = []
     for title, g in titled:
-        present = set(g["technique"])
-        pairs = [(t, baseline) for t in sorted(present) if baseline in present and t != baseline]
-        for a, b in pairs:
+        for a, b in compared_pairs(set(g["technique"]), baseline, rivals):
             costs = scaling.equal_error_costs(g, a, b, level=LEVEL)
             crossing = scaling.crossover(g, a, b, level=LEVEL)
             out.append({"family": title, "a": a, "b": b,

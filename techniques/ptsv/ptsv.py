@@ -74,6 +74,7 @@ class PerTriangleShadowVolumes(Technique):
     # walks it.
     quality_knobs = {"mask_res": ("quarter", "full")}
     declines_lights = {}  # a volume is the same four planes for every light type
+    rivals = ("sv", "rt")  # the other exact methods: volumes with fill, rays
 
     class Params(TechniqueParams):
         hierarchy: Literal["tiles"] = "tiles"

@@ -69,6 +69,7 @@ class RayTraced(Technique):
     # quality knob: rays per pixel (the one way a point-sampled exact method buys time)
     quality_knobs = {"mask_res": ("quarter", "half", "full")}
     declines_lights = {}  # a ray reaches a point light as a spot light
+    rivals = ("sv", "silhouette")  # the exact volumes and the map with exact edges
 
     class Params(TechniqueParams):
         backend: Literal["gl", "embree"] = "gl"

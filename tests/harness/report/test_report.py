@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import results
+from harness import registry, results
 from harness.cli import main as shadowbench
-from harness.report import build_report, images, stability
+from harness.report import build_report, images, scale, stability
 from helpers import ROOT, SCALE_SIZES, SCALE_TIMES, hostile_folder, make_run_dir, scale_folder
 
 
@@ -336,6 +336,31 @@ def test_scale_view_shows_the_exponents_and_the_crossing(tmp_path, make_results)
     fronts = json.loads(specs["scale-front-0"])
     assert [f["title"] for f in fronts["facets"]] == [
         "1,000 triangles", "10,000 triangles", "100,000 triangles", "1,000,000 triangles"]
+
+
+def test_crossovers_weigh_a_technique_against_the_rivals_its_class_names(tmp_path, make_results):
+    """rt declares sv and silhouette its rivals (issue 36: rays against volumes), so scale_folder
+    with rt added at half sm's times (0.5, 1, 2, 4 ms) gets an rt-against-sv row besides rt
+    against sm: ratios 0.5 / 0.25 = 2, 1 / 1 = 1, 2 / 8 = 0.25, 4 / 32 = 0.125 at 10^3..10^6,
+    no crossing (rt costs at most sv's at the largest size). silhouette has no runs: no row.
+    Each unordered pair once (sv against sm only as sv's row). Catches the table built against the baseline alone (the
+    seed's), and a pair listed twice when two techniques name each other."""
+    folder = scale_folder(tmp_path / "run", make_results)
+    rows = results.read_rows(folder)
+    rt_version = registry.get("rt").code_version()
+    rows += [{**row, "technique": "rt", "code_version": rt_version, "time_ms": float(row["time_ms"]) / 2,
+              "run_id": f"{row['run_id']}-rt"}
+             for row in rows if row["technique"] == "sm" and row["scene"].startswith("arch@")]
+    results.write_rows(folder, rows)
+    view = build_report(folder).read_text()
+    view = view[view.index('class="crossovers"'):view.index('class="exponents"')]
+    pairs = re.findall(r"<b>(\w+)</b></td><td>.*?</span>(\w+)</td>", view)
+    assert sorted(pairs) == [("rt", "sm"), ("rt", "sv"), ("sv", "sm")]
+    assert "1,000: 2× · 10,000: 1× · 100,000: 0.25× · 1,000,000: 0.125×" in view
+    assert "rt costs at most sv&#39;s at the largest size" in view
+    assert scale.compared_pairs({"rt", "ptsv", "sv"}, None,
+                                {"rt": ("ptsv",), "ptsv": ("rt", "sv")}) == [
+        ("ptsv", "rt"), ("ptsv", "sv")]
 
 
 def test_the_overview_judges_each_size_band_apart(tmp_path, make_results):
