@@ -343,8 +343,9 @@ def test_crossovers_weigh_a_technique_against_the_rivals_its_class_names(tmp_pat
     with rt added at half sm's times (0.5, 1, 2, 4 ms) gets an rt-against-sv row besides rt
     against sm: ratios 0.5 / 0.25 = 2, 1 / 1 = 1, 2 / 8 = 0.25, 4 / 32 = 0.125 at 10^3..10^6,
     no crossing (rt costs at most sv's at the largest size). silhouette has no runs: no row.
-    Each unordered pair once (sv against sm only as sv's row). Catches the table built against the baseline alone (the
-    seed's), and a pair listed twice when two techniques name each other."""
+    Each unordered pair once (sv against sm only as sv's row). Catches the table built against
+    the baseline alone (the seed's), and a pair listed twice when two techniques name each
+    other."""
     folder = scale_folder(tmp_path / "run", make_results)
     rows = results.read_rows(folder)
     rt_version = registry.get("rt").code_version()
