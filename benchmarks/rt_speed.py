@@ -41,14 +41,15 @@ def build(args) -> None:
           f"{args.leaf_size}; bound checked against budget_mib: "
           f"{levels.bound_bytes(triangles) / 2**20:.1f} MiB")
     for method in bvh.BUILDERS:
-        best, nodes = float("inf"), 0
+        best, records = float("inf"), 0
         for _ in range(args.rounds):
             start = time.perf_counter()
             trees = [bvh.build(c.min(1), c.max(1), method, args.leaf_size)
                      for c in (p.vertices[p.faces] for p in parts)]
             best = min(best, time.perf_counter() - start)
             nodes = sum(t.nodes for t in trees)
-        nbytes = nodes * bvh.NODE_BYTES + triangles * levels.TRIANGLE_BYTES
+            records = sum(t.record_count for t in trees)
+        nbytes = records * bvh.RECORD_BYTES + triangles * levels.TRIANGLE_BYTES
         depth = max(t.depth for t in trees)
         print(f"  {method}: {best:.3f} s (best of {args.rounds}), {nodes:,} nodes, depth "
               f"{depth}, {nbytes / 2**20:.1f} MiB")

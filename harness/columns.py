@@ -92,7 +92,7 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("primitives", float, "count", "primitives reaching the rasteriser", _COUNTERS),
     Column("compute_invocations", float, "count", "compute shader invocations (the GPU "
            "reductions)", _COUNTERS),
-    Column("traversal_nodes", float, "count", "BVH nodes a ray-traced technique's rays visited "
+    Column("traversal_nodes", float, "count", "BVH nodes a ray-traced technique's rays entered "
            "in one frame (counted in an untimed repeat)", "for a technique that traces no rays"),
     Column("triangle_tests", float, "count", "ray-triangle tests of those rays in one frame",
            "as traversal_nodes"),

@@ -6,7 +6,7 @@
                 + per_fetch_ms    * fetches             (fetches_per_px * covered_px)
                 + per_byte_ms     * bytes               (mem_bytes: the maps, written each frame)
                 + per_compute_ms  * compute_invocations (the GPU reductions, e.g. the warps')
-                + per_node_ms     * traversal_nodes     (BVH nodes visited by a frame's rays)
+                + per_node_ms     * traversal_nodes     (BVH nodes entered by a frame's rays)
                 + per_test_ms     * triangle_tests      (ray-triangle tests of a frame's rays)
 
 Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
@@ -31,7 +31,7 @@ NVIDIA, "NVIDIA Ada GPU Architecture" whitepaper (2023), appendix table "GeForce
 GDDR6X at 21 Gbps gives 1008 GB/s (per byte). The whitepaper gives no vertex rate: per vertex
 assumes 64 FP32 operations (two 4x4 matrix-vector products, what our vertex shaders do) at the
 whitepaper's 82.6 TFLOPS (1.29e12 vertices/s); per compute invocation likewise (a reduction's
-pixel: up to three 4x4 matrix-vector products and a shared-memory step); per node visited 40
+pixel: up to three 4x4 matrix-vector products and a shared-memory step); per node entered 40
 FP32 operations (two slab tests: 12 multiply-subtracts and 12 min/max each, and their
 compares), per triangle test 40 (Woop et al.'s shear and three 2D edge functions: about 30,
 with the distance). A compute traversal on such a GPU is bound by its memory latency more

@@ -14,7 +14,10 @@ per triangle or per node; a loop per level, about log2 of the count). Two split 
   fall in one bin splits at the middle of its range.
 
 A node holding ``leaf_size`` primitives or fewer is a leaf. Children of a node are adjacent
-(``first``, ``first + 1``), so a node stores one index. The result is a :class:`Bvh`.
+(``first``, ``first + 1``), so a node stores one index. The result is a :class:`Bvh`; for the
+traversal it becomes :meth:`Bvh.texels`: one record per internal node holding both children's
+boxes (Aila and Laine 2009), so a step of the traversal tests two boxes and enters only the
+children it hits.
 """
 
 from __future__ import annotations
@@ -25,7 +28,11 @@ import numpy as np
 
 BUILDERS = ("lbvh", "sah")
 SAH_BINS = 16
-NODE_BYTES = 32  # two RGBA32F texels: (lo, first child or first primitive), (hi, count)
+RECORD_BYTES = 64  # four RGBA32F texels: (lo, entry), (hi, -) of each child
+# An entry names a child: an internal node, its record's index (count bits 0); a leaf, its
+# primitive count (1..16) in the top 5 bits over its first primitive
+COUNT_SHIFT = 27
+MAX_LEAF = 16
 
 
 @dataclass
@@ -41,15 +48,32 @@ class Bvh:
     def nodes(self) -> int:
         return len(self.first)
 
-    def texels(self, node_offset: int = 0, primitive_offset: int = 0) -> np.ndarray:
-        """The nodes as (2N, 4) float32 texels: (lo, first) and (hi, count), the integers
-        stored as their bits; child and primitive indices shifted by the offsets (where this
-        BVH sits in a buffer shared with others)."""
-        first = np.where(self.count > 0, self.first + primitive_offset, self.first + node_offset)
-        out = np.empty((self.nodes, 2, 4), np.float32)
-        out[:, 0, :3], out[:, 1, :3] = self.lo, self.hi
-        out[:, 0, 3] = first.astype(np.uint32).view(np.float32)
-        out[:, 1, 3] = self.count.astype(np.uint32).view(np.float32)
+    @property
+    def record_count(self) -> int:
+        """Internal nodes: the records :meth:`texels` writes."""
+        return int((self.count == 0).sum())
+
+    def entries(self, record_offset: int = 0, primitive_offset: int = 0) -> np.ndarray:
+        """Each node's entry (uint32), record indices and primitives shifted by the offsets
+        (where this BVH sits in a buffer shared with others)."""
+        internal = self.count == 0
+        record = np.cumsum(internal) - 1 + record_offset
+        if ((self.first + primitive_offset)[~internal] >= 1 << COUNT_SHIFT).any() or \
+                self.count.max(initial=0) > MAX_LEAF:
+            raise ValueError(f"a leaf past primitive {1 << COUNT_SHIFT} or of more than "
+                             f"{MAX_LEAF} primitives cannot be named by an entry")
+        leaf = (self.count << COUNT_SHIFT) | (self.first + primitive_offset)
+        return np.where(internal, record, leaf).astype(np.uint32)
+
+    def texels(self, record_offset: int = 0, primitive_offset: int = 0) -> np.ndarray:
+        """The internal nodes' records as (4 R, 4) float32 texels: each child's (lo, entry) and
+        (hi, 0), the entries stored as their bits (:meth:`entries`). The root's entry is
+        ``entries(...)[0]``: a BVH whose root is a leaf has no record."""
+        entry = self.entries(record_offset, primitive_offset).view(np.float32)
+        children = self.first[self.count == 0][:, None] + np.arange(2)
+        out = np.zeros((len(children), 2, 2, 4), np.float32)
+        out[:, :, 0, :3], out[:, :, 1, :3] = self.lo[children], self.hi[children]
+        out[:, :, 0, 3] = entry[children]
         return out.reshape(-1, 4)
 
 
@@ -57,6 +81,11 @@ def lbvh_depth_bound(primitives: int) -> int:
     """The deepest an ``lbvh`` tree gets: one level per bit of the 30-bit codes, then halving
     runs of equal codes."""
     return 30 + max(int(primitives) - 1, 0).bit_length()
+
+
+def max_records(primitives: int) -> int:
+    """At most this many internal nodes (records) for ``primitives``: one per leaf but one."""
+    return max(primitives - 1, 0)
 
 
 def max_nodes(primitives: int) -> int:

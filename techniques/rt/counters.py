@@ -1,6 +1,7 @@
-"""Work per ray, counted in an untimed repeat of the trace: nodes visited (both levels) and
-triangle tests, each ray's written by ``rt_trace.comp.glsl`` built with ``COUNT``, over all
-rays and over the occluded ones (those that had to find a triangle: the traversal's depth)."""
+"""Work per ray, counted in an untimed repeat of the trace: nodes entered (both levels; an
+internal node entered is a test of its two children's boxes) and triangle tests, each ray's
+written by ``rt_trace.comp.glsl`` built with ``COUNT``, over all rays and over the occluded
+ones (those that had to find a triangle: the traversal's depth)."""
 
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ class RayCounter:
 
 
 def per_ray(nodes: np.ndarray, tests: np.ndarray, occluded: np.ndarray) -> dict:
-    """Mean and 99th percentile of nodes visited and triangle tests per ray, the mean nodes of
+    """Mean and 99th percentile of nodes entered and triangle tests per ray, the mean nodes of
     an occluded ray, the rays, and the frame's totals."""
     if not len(nodes):
         return {"rays": 0}

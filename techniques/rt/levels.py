@@ -28,7 +28,7 @@ def bound_bytes(triangles: int) -> int:
     """Bytes the bottom levels may take for ``triangles``, whatever the builder: every
     triangle's texels and a binary tree's most nodes (one triangle per leaf). The budget
     check refuses a scene on this before building anything."""
-    return triangles * TRIANGLE_BYTES + bvh.max_nodes(triangles) * bvh.NODE_BYTES
+    return triangles * TRIANGLE_BYTES + bvh.max_records(triangles) * bvh.RECORD_BYTES
 
 
 def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):
@@ -47,34 +47,36 @@ class TwoLevelBvh:
 
     def __init__(self, parts, build: str, leaf_size: int):
         self.used = [i for i, part in enumerate(parts) if len(part.faces)]
-        nodes, triangles, roots, depths = [], [], [], []
-        node_offset = triangle_offset = 0
+        records, triangles, roots, depths = [], [], [], []
+        record_offset = triangle_offset = 0
         for i in self.used:  # one build per part, each vectorised over its triangles
             part = parts[i]
             corners = part.vertices[part.faces]
             tree = bvh.build(corners.min(1), corners.max(1), build, leaf_size)
-            nodes.append(tree.texels(node_offset, triangle_offset))
+            records.append(tree.texels(record_offset, triangle_offset))
             padded = np.zeros((len(tree.order), 3, 4), np.float32)
             padded[..., :3] = corners[tree.order]
             triangles.append(padded.reshape(-1, 4))
-            roots.append((node_offset, tree.lo[0], tree.hi[0]))
+            roots.append((tree.entries(record_offset, triangle_offset)[0], tree.lo[0],
+                          tree.hi[0]))
             depths.append(tree.depth)
-            node_offset += tree.nodes
+            record_offset += tree.record_count
             triangle_offset += len(tree.order)
         self.empty = not self.used
-        self.node_count, self.triangle_count = node_offset, triangle_offset
-        self.root_nodes = np.array([r[0] for r in roots], np.uint32)
+        self.record_count, self.triangle_count = record_offset, triangle_offset
+        self.root_entries = np.array([r[0] for r in roots], np.uint32)
         self.root_lo = np.array([r[1] for r in roots], np.float32).reshape(-1, 3)
         self.root_hi = np.array([r[2] for r in roots], np.float32).reshape(-1, 3)
         self.bottom_depth = max(depths, default=0)
-        self.top_nodes = bvh.max_nodes(len(self.used))
+        self.top_records = bvh.max_records(len(self.used))
+        self.top_root = 0  # the top level's root entry: a record, or one instance's leaf
         self.top_depth = bvh.lbvh_depth_bound(len(self.used))  # whatever the poses
         empty = np.zeros((1, 4), np.float32)
-        self.nodes = BufferTexture(np.concatenate(nodes) if nodes else empty, GL.GL_RGBA32F)
+        self.nodes = BufferTexture(np.concatenate(records + [empty]), GL.GL_RGBA32F)
         self.triangles = BufferTexture(np.concatenate(triangles) if triangles else empty,
                                        GL.GL_RGBA32F)
-        self.top = BufferTexture(np.zeros((2 * self.top_nodes, 4), np.float32), GL.GL_RGBA32F,
-                                 dynamic=True)
+        self.top = BufferTexture(np.zeros((4 * max(self.top_records, 1), 4), np.float32),
+                                 GL.GL_RGBA32F, dynamic=True)
         self.instances = BufferTexture(np.zeros((4 * max(len(self.used), 1), 4), np.float32),
                                        GL.GL_RGBA32F, dynamic=True)
 
@@ -85,11 +87,11 @@ class TwoLevelBvh:
 
     @property
     def bottom_bytes(self) -> int:
-        return self.node_count * bvh.NODE_BYTES + self.triangle_count * TRIANGLE_BYTES
+        return self.record_count * bvh.RECORD_BYTES + self.triangle_count * TRIANGLE_BYTES
 
     @property
     def nbytes(self) -> int:
-        return self.bottom_bytes + self.top_nodes * bvh.NODE_BYTES + \
+        return self.bottom_bytes + self.top_records * bvh.RECORD_BYTES + \
             len(self.used) * INSTANCE_BYTES
 
     def rebuild_top(self, poses: np.ndarray) -> None:
@@ -101,15 +103,17 @@ class TwoLevelBvh:
         poses = np.asarray(poses, np.float64)[self.used]
         lo, hi = _moved_boxes(self.root_lo, self.root_hi, poses)
         top = bvh.build(lo, hi, "lbvh", leaf_size=1)
-        self.top.write(top.texels())
+        self.top_root = int(top.entries()[0])
+        if top.record_count:
+            self.top.write(top.texels())
         instances = np.zeros((len(self.used), 4, 4), np.float32)
         instances[:, :3] = np.linalg.inv(poses)[:, :3]
-        instances[:, 3, 0] = self.root_nodes.view(np.float32)
+        instances[:, 3, 0] = self.root_entries.view(np.float32)
         self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
 
     def bind(self, program, first_unit: int) -> int:
         """Bind the four buffer textures to ``program``'s samplers; returns the next unit."""
-        program.set(nodes=self.nodes.bind(first_unit),
+        program.set(tlas_root=self.top_root, nodes=self.nodes.bind(first_unit),
                     triangles=self.triangles.bind(first_unit + 1),
                     tlas=self.top.bind(first_unit + 2),
                     instances=self.instances.bind(first_unit + 3))

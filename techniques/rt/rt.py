@@ -31,7 +31,8 @@ class RayTraced(Technique):
     ``sah``, binned surface-area heuristic; ``bvh``), and a top level over the parts' instances
     at their poses (``Frame.part_poses``), rebuilt in ``update`` inside the timed ``tlas`` pass
     (every frame under ``cost: dynamic``). ``backend: gl`` traverses in a compute shader
-    (``rt_trace.comp.glsl``: Aila and Laine 2009's stack traversal over buffer textures, Woop,
+    (``rt_trace.comp.glsl``: Aila and Laine 2009's stack traversal, each internal node holding
+    both children's boxes, nearer child first, over buffer textures; Woop,
     Benthin and Wald 2013's watertight triangle test) in the timed ``trace`` pass;
     ``backend: embree`` traces the same rays on the CPU with Mitsuba's ``ray_test``
     (``embree``), its G-buffer read-back, trace and V upload in timed passes.
@@ -43,7 +44,7 @@ class RayTraced(Technique):
     position's own rounding, whatever the scene's scale. ``mask_res: half`` or ``quarter``
     traces one ray per 2x2 or 4x4 pixels and magnifies the 0/1 mask bilinearly, as sv's
     smaller masks. One-off work (the bottom levels, Mitsuba's scene) is the harness's
-    ``prepare_ms``. Nodes visited and triangle tests per ray are counted in an untimed repeat
+    ``prepare_ms``. Nodes entered and triangle tests per ray are counted in an untimed repeat
     of the trace (``counters``); ``mem_bytes`` is the BVH's bytes and the mask's.
 
     ==================  ==================================================  =======  ==========

@@ -3,7 +3,7 @@
 // in world space, each leaf one instance whose bottom-level BVH is in the part's own space
 // (the ray moved there by the instance's world-to-object transform). One stack serves both
 // levels (Aila and Laine 2009's while-while loop, one level at a time). Early exit on the
-// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes visited, triangle tests
+// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes entered, triangle tests
 // and whether it was occluded, per ray, to `counts`.
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -13,10 +13,11 @@ layout(rgba32ui, binding = 1) writeonly uniform uimage2D counts;
 #endif
 uniform sampler2D gbuffer_position;
 uniform sampler2D gbuffer_normal;
-uniform samplerBuffer nodes;      // all parts' bottom-level nodes: (lo, first), (hi, count)
+uniform samplerBuffer nodes;      // all parts' bottom-level records (bvh.py's texels)
 uniform samplerBuffer triangles;  // 3 texels (vertices) per triangle, in leaf order
-uniform samplerBuffer tlas;       // top-level nodes, the same layout; a leaf is one instance
-uniform samplerBuffer instances;  // 4 texels: rows of world-to-object 3x4, (root node, ...)
+uniform samplerBuffer tlas;       // top-level records, the same layout; a leaf is one instance
+uniform int tlas_root;            // the top level's root entry
+uniform samplerBuffer instances;  // 4 texels: rows of world-to-object 3x4, (root entry, ...)
 uniform int divisor;              // image pixels per mask texel along each axis
 uniform bool directional;
 uniform vec3 light;               // directional: unit vector towards the light; else position
@@ -29,13 +30,14 @@ uint bits(float f) { return floatBitsToUint(f); }
 
 // Slab test with the far distance widened by 1 + 2 gamma(3) (Ize 2013, "Robust BVH ray
 // traversal"), so rounding never rejects a box the ray touches: with the watertight triangle
-// test it keeps a ray aimed at a shared edge from slipping between two boxes.
-bool box_hit(vec3 lo, vec3 hi, vec3 origin, vec3 inv, float tmax) {
+// test it keeps a ray aimed at a shared edge from slipping between two boxes. The distance
+// where the ray enters the box (>= 0), or -1 where it misses it.
+float box_enter(vec3 lo, vec3 hi, vec3 origin, vec3 inv, float tmax) {
     vec3 t0 = (lo - origin) * inv, t1 = (hi - origin) * inv;
     vec3 near = min(t0, t1), far = max(t0, t1);
     float enter = max(max(near.x, near.y), max(near.z, 0.0));
     float leave = min(min(far.x, far.y), min(far.z, tmax)) * 1.0000004;
-    return enter <= leave;
+    return enter <= leave ? enter : -1.0;
 }
 
 vec3 safe_inverse(vec3 d) {
@@ -44,52 +46,69 @@ vec3 safe_inverse(vec3 d) {
     return 1.0 / mix(d, s * tiny, lessThan(abs(d), vec3(tiny)));
 }
 
-// true where the segment (origin, origin + t dir), 0 < t < tmax, meets a triangle
+// An entry names a node (bvh.py): a record (an internal node: both children's boxes and
+// entries, four texels) by its index, or a leaf by its count (top 5 bits) and first primitive.
+const uint COUNT_SHIFT = 27u;
+const uint FIRST_MASK = (1u << COUNT_SHIFT) - 1u;
+
+// true where the segment (origin, origin + t dir), 0 < t < tmax, meets a triangle. Each step
+// enters one node: a record tests both children's boxes and goes on into the nearer child it
+// hits, the other one pushed; a leaf tests its triangles (bottom level) or moves the ray into
+// its instance's space and enters the part's root (top level).
 bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, out uint tested) {
     uint stack[STACK_SIZE];
     int sp = 0, floor_sp = 0;
     bool bottom = false;
-    uint node = 0u;
+    uint entry = uint(tlas_root);
     vec3 origin = world_origin, dir = world_dir, inv = safe_inverse(dir);
     Watertight ray;
     visited = 0u;
     tested = 0u;
     while (true) {
-        int at = int(2u * node);
-        vec4 a = bottom ? texelFetch(nodes, at) : texelFetch(tlas, at);
-        vec4 b = bottom ? texelFetch(nodes, at + 1) : texelFetch(tlas, at + 1);
         visited++;
-        if (box_hit(a.xyz, b.xyz, origin, inv, tmax)) {
-            uint first = bits(a.w), count = bits(b.w);
-            if (count == 0u) {
-                stack[sp++] = first + 1u;
-                node = first;
+        uint count = entry >> COUNT_SHIFT, first = entry & FIRST_MASK;
+        if (count == 0u) {
+            int at = int(4u * first);
+            vec4 lo0 = bottom ? texelFetch(nodes, at) : texelFetch(tlas, at);
+            vec4 hi0 = bottom ? texelFetch(nodes, at + 1) : texelFetch(tlas, at + 1);
+            vec4 lo1 = bottom ? texelFetch(nodes, at + 2) : texelFetch(tlas, at + 2);
+            vec4 hi1 = bottom ? texelFetch(nodes, at + 3) : texelFetch(tlas, at + 3);
+            float enter0 = box_enter(lo0.xyz, hi0.xyz, origin, inv, tmax);
+            float enter1 = box_enter(lo1.xyz, hi1.xyz, origin, inv, tmax);
+            bool hit0 = enter0 >= 0.0, hit1 = enter1 >= 0.0;
+            if (hit0 && hit1) {
+                bool near0 = enter0 <= enter1;
+                stack[sp++] = bits(near0 ? lo1.w : lo0.w);
+                entry = bits(near0 ? lo0.w : lo1.w);
                 continue;
             }
-            if (bottom) {
-                for (uint i = first; i < first + count; ++i) {
-                    tested++;
-                    int t = int(3u * i);
-                    if (watertight_hit(ray, texelFetch(triangles, t).xyz,
-                                       texelFetch(triangles, t + 1).xyz,
-                                       texelFetch(triangles, t + 2).xyz, tmax)) {
-                        return true;
-                    }
+            if (hit0 || hit1) {
+                entry = bits(hit0 ? lo0.w : lo1.w);
+                continue;
+            }
+        } else if (bottom) {
+            for (uint i = first; i < first + count; ++i) {
+                tested++;
+                int t = int(3u * i);
+                if (watertight_hit(ray, texelFetch(triangles, t).xyz,
+                                   texelFetch(triangles, t + 1).xyz,
+                                   texelFetch(triangles, t + 2).xyz, tmax)) {
+                    return true;
                 }
-            } else {  // an instance: into the part's space, down its bottom level
-                int k = int(4u * first);
-                mat4x3 to_object = transpose(mat3x4(texelFetch(instances, k),
-                                                    texelFetch(instances, k + 1),
-                                                    texelFetch(instances, k + 2)));
-                origin = to_object * vec4(world_origin, 1.0);
-                dir = to_object * vec4(world_dir, 0.0);
-                inv = safe_inverse(dir);
-                ray = watertight_setup(origin, dir);
-                bottom = true;
-                floor_sp = sp;
-                node = bits(texelFetch(instances, k + 3).x);
-                continue;
             }
+        } else {  // an instance: into the part's space, down its bottom level
+            int k = int(4u * first);
+            mat4x3 to_object = transpose(mat3x4(texelFetch(instances, k),
+                                                texelFetch(instances, k + 1),
+                                                texelFetch(instances, k + 2)));
+            origin = to_object * vec4(world_origin, 1.0);
+            dir = to_object * vec4(world_dir, 0.0);
+            inv = safe_inverse(dir);
+            ray = watertight_setup(origin, dir);
+            bottom = true;
+            floor_sp = sp;
+            entry = bits(texelFetch(instances, k + 3).x);
+            continue;
         }
         if (bottom && sp == floor_sp) {  // the instance is done: back to the top level
             bottom = false;
@@ -100,7 +119,7 @@ bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, o
         if (sp == 0) {
             return false;
         }
-        node = stack[--sp];
+        entry = stack[--sp];
     }
 }
 
