@@ -2,7 +2,9 @@
 reference uses (Embree in its CPU variants), on the scene the reference builds
 (``harness.reference.mitsuba_scene_dict``: the same triangles, moved next to Mitsuba's origin).
 The G-buffer read-back, the trace and the upload of the mask are timed passes; the scene build
-is ``prepare``'s, and a moved object's rebuild is the timed ``scene_build`` pass."""
+is ``prepare``'s. The parts of objects the scene's motion moves are Mitsuba instances of shape
+groups (Embree's two levels): a frame moves them by their poses in the timed ``tlas`` pass,
+as the compute traversal's top level, and nothing is built again."""
 
 from __future__ import annotations
 
@@ -40,22 +42,46 @@ def shadow_rays(position, normal, directional: bool, light, camera_position):
     return facing, origin, direction / np.maximum(length, 1e-30)[:, None], maxt
 
 
-class EmbreeRays:
-    def __init__(self, scene):
-        self.mi = reference.mitsuba_module(reference.choose_variant())
-        self._build(scene)
+def moving_parts(frame) -> list[int]:
+    """The parts of the objects the frame's motion moves (none on a still scene)."""
+    scene = frame.sequence.config
+    if not scene.motion:
+        return []
+    movers = {scene.object_index(path.object) for path in scene.motion.objects}
+    return [i for i, part in enumerate(frame.scene.parts) if part.object_index in movers]
 
-    def _build(self, scene) -> None:
-        self.parts, self.shift = scene.parts, reference.mitsuba_origin(scene)
-        self.scene = self.mi.load_dict(reference.mitsuba_scene_dict(scene, self.mi, samples=1))
+
+class EmbreeRays:
+    """Mitsuba's scene of ``frame``'s (at frame 0), moving parts as instances."""
+
+    def __init__(self, frame):
+        mi = self.mi = reference.mitsuba_module(reference.choose_variant())
+        self.shift = reference.mitsuba_origin(frame.scene)
+        self.moving = moving_parts(frame)
+        d = reference.mitsuba_scene_dict(frame.scene, mi, samples=1)
+        for i in self.moving:
+            d[f"group{i}"] = {"type": "shapegroup", "mesh": d.pop(f"mesh{i}")}
+            d[f"instance{i}"] = {"type": "instance",
+                                 "shapegroup": {"type": "ref", "id": f"group{i}"}}
+        self.scene = mi.load_dict(d)
+        self.params = mi.traverse(self.scene) if self.moving else None
+        self.poses = np.tile(np.eye(4), (len(self.moving), 1, 1))
 
     def follow(self, frame) -> None:
-        """Where objects moved (the frame's parts are new arrays), Mitsuba's scene is built
-        again from them, in the timed ``scene_build`` pass: Mitsuba has no instance pose to
-        move."""
-        if frame.scene.parts is not self.parts:
-            with frame.measure("scene_build"):
-                self._build(frame.scene)
+        """Move the instances to the frame's poses, where they changed, in the timed ``tlas``
+        pass: Mitsuba updates its top level (each pose taken into Mitsuba's coordinates, the
+        scene moved by ``-shift``)."""
+        poses = frame.part_poses[self.moving]
+        if np.array_equal(poses, self.poses):
+            return
+        with frame.measure("tlas"):
+            to_shifted, from_shifted = np.eye(4), np.eye(4)
+            to_shifted[:3, 3], from_shifted[:3, 3] = -self.shift, self.shift
+            for i, pose in zip(self.moving, poses):
+                self.params[f"instance{i}.to_world"] = self.mi.Transform4f(
+                    (to_shifted @ pose @ from_shifted).tolist())
+            self.params.update()
+        self.poses = poses
 
     def trace(self, frame, mask, divisor: int, light: dict, camera_position) -> None:
         """The mask (GL rows, bottom first) from one ray per mask texel (V = 0 and no ray

@@ -35,7 +35,8 @@ class RayTraced(Technique):
     both children's boxes, nearer child first, over buffer textures; Woop,
     Benthin and Wald 2013's watertight triangle test) in the timed ``trace`` pass;
     ``backend: embree`` traces the same rays on the CPU with Mitsuba's ``ray_test``
-    (``embree``), its G-buffer read-back, trace and V upload in timed passes.
+    (``embree``), its G-buffer read-back, trace and V upload in timed passes, moving objects'
+    parts as Mitsuba instances moved in the timed ``tlas`` pass.
 
     A pixel whose visible side faces away from the light gets V = 0 and no ray (it receives
     no light; such pixels are never compared). The origin of each ray is the G-buffer point
@@ -100,7 +101,7 @@ class RayTraced(Technique):
         self.levels = self.embree = self.trace_program = None
         self.counted = (None, {})  # what the counters were last counted for, and their values
         if p.backend == "embree":
-            self.embree = EmbreeRays(frame.scene)
+            self.embree = EmbreeRays(frame)
             return
         self.levels = levels.TwoLevelBvh(parts, p.build, p.leaf_size)
         defines = {"STACK_SIZE": self.levels.stack_size}

@@ -25,6 +25,22 @@ MOVING = {**STILL, "motion": {"frames": 3, "objects": [
     {"object": "caster", "spin": 90, "orbit": 60, "centre": [0, 0, 0]}]}}
 
 
+def away_from_the_origin(scene: dict, offset) -> dict:
+    """``scene`` (STILL's keys, MOVING's motion) moved by ``offset``."""
+    def at(point):
+        return (np.asarray(point, float) + offset).tolist()
+
+    moved = {**scene, "objects": [{**o, "translate": at(o.get("translate", [0, 0, 0]))}
+                                  for o in scene["objects"]],
+             "camera": {**scene["camera"], "position": at(scene["camera"]["position"]),
+                        "target": at(scene["camera"]["target"])},
+             "light": {**scene["light"], "position": at(scene["light"]["position"]),
+                       "target": at(scene["light"]["target"])}}
+    moved["motion"] = {**scene["motion"], "objects": [
+        {**path, "centre": at(path["centre"])} for path in scene["motion"]["objects"]]}
+    return moved
+
+
 def render(technique, frame) -> np.ndarray:
     frame.meter.new_frame(True)
     try:
@@ -75,6 +91,44 @@ def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_co
             followed = render(moved, frame)
         assert builds == [("lbvh", 1, ("tlas",))] * 3  # frames 0, 1, 2: the top level alone
         assert [p.name for p in frame.meter.passes()] == ["tlas", "trace", "visibility"]
+        fresh.prepare(still)
+        expected = render(fresh, still)
+        np.testing.assert_array_equal(followed, expected)
+        assert np.count_nonzero(followed != first) > 20
+    finally:
+        for resource in (moved, fresh, frame, still):
+            resource.release()
+        reset_gl_state()
+
+
+def test_the_embree_backend_moves_instances_and_builds_once(gl_context, monkeypatch):
+    """``backend: embree`` on MOVING: the caster's parts are Mitsuba instances moved by their
+    poses in the timed ``tlas`` pass, and Mitsuba's scene is loaded once (prepare); frame 2's
+    V equals, bit for bit, a fresh run on the still scene of frame 2 (which differs from
+    frame 0's). The scene is MOVING moved 40 units away from the origin, so that Mitsuba's
+    copy is shifted back by (40, 20, 0). Catches poses never applied (frame 2 shows frame 0's
+    shadow), a pose applied without Mitsuba's shift, and the scene loaded again per moved
+    frame (the backend's first version: 3 loads). All three seen failing."""
+    from harness import reference
+
+    cls = registry.get("rt")
+    params = cls.Params(backend="embree")
+    moving = build_scene("moving", config.Scene(**away_from_the_origin(MOVING, [40, 20, 0])))
+    frame, still = Frame(moving), Frame(moving.at_frame(2))
+    moved, fresh = cls(params), cls(params)
+    mi = reference.mitsuba_module(reference.choose_variant())
+    loads, real_load = [], mi.load_dict
+    monkeypatch.setattr(mi, "load_dict",
+                        lambda d: loads.append(d["type"]) or real_load(d))
+    try:
+        moved.prepare(frame)
+        first = render(moved, frame)
+        for t in (1, 2):
+            frame.move_to(t)
+            followed = render(moved, frame)
+        assert loads.count("scene") == 1
+        assert [p.name for p in frame.meter.passes()] == [
+            "tlas", "readback", "trace", "upload", "visibility"]
         fresh.prepare(still)
         expected = render(fresh, still)
         np.testing.assert_array_equal(followed, expected)
