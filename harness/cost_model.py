@@ -51,7 +51,7 @@ import argparse
 import json
 import math
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -164,6 +164,33 @@ def fit(rows: list[dict], name: str = "fitted") -> Coefficients:
     return Coefficients(name, f"nnls over {len(t)} runs", *(c / scale))
 
 
+def fit_terms(rows: list[dict], base: Coefficients, terms: tuple[str, ...],
+              name: str = "fitted") -> Coefficients:
+    """``base`` with only ``terms`` (``per_node_ms``, ...) fitted: non-negative least squares
+    of what ``base``'s other terms leave of ``time_ms``, over the rows that have work in
+    those terms (a technique that joined after ``base`` was fitted: its own terms priced
+    without moving the rest)."""
+    fields = [f for f in asdict(base) if f.startswith("per_")]
+    unknown = sorted(set(terms) - set(fields))
+    if unknown or not terms:
+        raise ValueError(f"terms must be some of {', '.join(fields)}; got {', '.join(terms)}")
+    x, t = _design(rows)
+    picked = np.array([f in terms for f in fields])
+    has_work = (x[:, picked] > 0).any(axis=1)
+    x, t = x[has_work], t[has_work]
+    if len(t) < picked.sum():
+        raise ValueError(f"need at least {picked.sum()} runs with work in {', '.join(terms)} "
+                         f"to fit them, got {len(t)}")
+    from scipy.optimize import nnls
+
+    rest = t - x[:, ~picked] @ base.vector()[~picked]
+    scale = np.where(x[:, picked].max(axis=0) > 0, x[:, picked].max(axis=0), 1.0)
+    c, _ = nnls(x[:, picked] / scale, rest)
+    values = dict(zip((f for f, p in zip(fields, picked) if p), c / scale))
+    return replace(base, name=name, source=f"{base.source}; {', '.join(terms)} by nnls over "
+                                            f"{len(t)} runs", **values)
+
+
 def fit_quality(rows: list[dict], coefficients: Coefficients) -> dict:
     """R^2 of the model's times against ``time_ms``, the worst and median relative errors and
     the run with the worst error."""
@@ -200,6 +227,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m harness.cost_model",
                                 description="fit of the llvmpipe cost model over a results folder")
     p.add_argument("dir", help="a run directory (its results.csv)")
+    p.add_argument("--terms", help="fit only these terms (per_node_ms,per_test_ms), the "
+                                   "others kept at the stored llvmpipe values")
     args = p.parse_args(argv)
     rows = read_rows(args.dir)
     usable = [r for r in rows if _usable(r)]
@@ -209,7 +238,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     noisy = sum(r.get("noisy") == "1" for r in usable)
     print(f"{args.dir}: {len(usable)} ok runs with work counters ({noisy} noisy)")
-    refit = fit(usable, name=f"fitted to {args.dir}")
+    try:
+        refit = (fit_terms(usable, LLVMPIPE, tuple(args.terms.split(",")),
+                           name=f"{args.terms} fitted to {args.dir}") if args.terms
+                 else fit(usable, name=f"fitted to {args.dir}"))
+    except ValueError as e:
+        print(f"python -m harness.cost_model: {args.dir}: {e}", file=sys.stderr)
+        return 2
     for coefficients in (LLVMPIPE, refit):
         quality = fit_quality(usable, coefficients)
         print(f"\n{coefficients.name} ({coefficients.source}):")

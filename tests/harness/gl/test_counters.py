@@ -1,6 +1,7 @@
 """Work counters (GL_ARB_pipeline_statistics_query) and the cost model built on them."""
 
 import csv
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -175,3 +176,33 @@ def test_fit_report_on_a_folder_without_runs_exits_2(tmp_path, capsys):
     assert cost_model.main([str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "0 ok runs with work counters" in err
+
+
+def test_fit_terms_prices_new_work_without_moving_the_rest():
+    """Rows made from known coefficients, half with traversal work: fitting only per_node_ms
+    and per_test_ms from a base that has the other terms right (and those two at 0) recovers
+    the two, leaves the others as they were, and uses only the rows with traversal work.
+    Catches: the fixed terms' time not taken off first (the two absorb it), rows without the
+    work in the fit, an unknown term accepted."""
+    rng = np.random.default_rng(1)
+    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6, 5e-7,
+                                    7e-7)
+    base = dataclasses.replace(truth, per_node_ms=0.0, per_test_ms=0.0)
+    rows = []
+    for i in range(30):
+        row = {"status": "ok", "scene": "s", "width": 8, "height": 8, "technique": "t",
+               "params": "{}", "passes": json.dumps([{}] * int(rng.integers(1, 5))),
+               "vertex_invocations": int(rng.integers(3, 10**5)),
+               "fragment_invocations": int(rng.integers(10**3, 10**7)),
+               "fetches_per_px": 1.0, "covered_px": int(rng.integers(10**3, 10**6)),
+               "mem_bytes": 0, "compute_invocations": int(rng.integers(0, 10**6))}
+        if i % 2:
+            row.update(traversal_nodes=int(rng.integers(10**4, 10**7)),
+                       triangle_tests=int(rng.integers(10**3, 10**6)))
+        row["time_ms"] = cost_model.estimate_ms(row, truth) * (1.5 if i % 2 == 0 else 1.0)
+        rows.append(row)
+    fitted = cost_model.fit_terms(rows, base, ("per_node_ms", "per_test_ms"))
+    assert np.allclose(fitted.vector(), truth.vector(), rtol=1e-6)
+    assert "over 15 runs" in fitted.source
+    with pytest.raises(ValueError, match="terms must be some of"):
+        cost_model.fit_terms(rows, base, ("per_nodes_ms",))
