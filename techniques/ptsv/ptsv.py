@@ -10,6 +10,7 @@ from OpenGL import GL
 from pydantic import Field, field_validator
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.transforms import box_corners
 
 from .hierarchy import SampleHierarchy, closed_sides
 
@@ -76,8 +77,9 @@ class PerTriangleShadowVolumes(Technique):
     declines_lights = {}  # a volume is the same four planes for every light type
 
     class Params(TechniqueParams):
-        hierarchy: Literal["tiles"] = "tiles"
+        hierarchy: Literal["tiles", "clusters"] = "tiles"
         tile: int = Field(2, ge=2, le=16)
+        slices: int = Field(16, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
 
         @field_validator("tile")
@@ -93,7 +95,8 @@ class PerTriangleShadowVolumes(Technique):
         scene = frame.scene
         sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
                              scene.edges.closed)
-        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides)
+        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides,
+                                         p.slices if p.hierarchy == "clusters" else 1)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "ptsv_visibility.frag.glsl", TILE=p.tile)
         self.counted_for = None
@@ -107,6 +110,18 @@ class PerTriangleShadowVolumes(Technique):
     def _origin(frame: Frame) -> np.ndarray:
         """The centre of the scene's bounds, in float32: positions are taken relative to it."""
         return frame.scene.bounds.mean(axis=0).astype(np.float32)
+
+    @staticmethod
+    def _depths(frame: Frame) -> tuple[np.ndarray, tuple[float, float]]:
+        """View depth as a plane over positions relative to ``_origin``, and the range of view
+        depths the scene's bounds span within the camera's near and far (the clusters' slices
+        cut it)."""
+        view, camera = frame.camera.view, frame.scene.config.camera
+        origin = PerTriangleShadowVolumes._origin(frame).astype(np.float64)
+        plane = np.append(-view[2, :3], -(view[2, :3] @ origin + view[2, 3]))
+        depths = box_corners(frame.scene.bounds) @ -view[2, :3] - view[2, 3]
+        near = min(max(depths.min(), camera.near), camera.far)
+        return plane, (near, max(min(depths.max(), camera.far), near))
 
     def _light(self, frame: Frame) -> np.ndarray:
         light = frame.scene.light
@@ -122,7 +137,7 @@ class PerTriangleShadowVolumes(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy
         with frame.measure("hierarchy"):
-            h.build(frame.gbuffer.position_texture, self._origin(frame))
+            h.build(frame.gbuffer.position_texture, self._origin(frame), *self._depths(frame))
         with frame.measure("volumes"):
             self._traverse(frame)
         with frame.measure("visibility"):
@@ -131,7 +146,9 @@ class PerTriangleShadowVolumes(Technique):
             frame.bind_gbuffer(program)
             program.set(levels=h.levels, magnify=self.divisor > 1)
             GL.glUniform2ui(program.location("mask_size"), *h.sizes[0])
+            GL.glUniform1ui(program.location("slices"), h.slices)
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 4, h.marks)
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 9, h.sample_slices)
             frame.draw_fullscreen(covered_only=True)
         self._count(frame)
         taps = 1 if self.divisor == 1 else 4

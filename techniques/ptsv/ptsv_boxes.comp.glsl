@@ -1,7 +1,10 @@
 // The hierarchy over the view samples, one level per dispatch: each node's box is the
 // axis-aligned bounds (world space) of its TILE x TILE children, samples for level 1 (their
 // G-buffer positions, covered ones only), nodes of the level below otherwise. A node without a
-// covered sample gets an empty box (lo > hi), which every test skips.
+// covered sample gets an empty box (lo > hi), which every test skips. With clusters
+// (`slices` > 1) a node is one depth slice of its tile (gl_GlobalInvocationID.z): its box
+// bounds that slice's samples or child nodes only, and level 1 stores each sample's slice; a
+// last dispatch (`merge_slices`) bounds the root over the top level's slices.
 #include "ptsv_volume.glsl"
 #include "ptsv_samples.glsl"
 
@@ -11,28 +14,41 @@ uniform uvec2 node_size;  // nodes per row and column at this level
 uniform uvec2 child_size;
 uniform uint node_first;  // node number of this level's first node
 uniform uint child_first;  // of the level below's (level > 1)
+uniform bool merge_slices;  // the root: node_first's box over child_first's `slices` nodes
 
 void main() {
     uvec2 node = gl_GlobalInvocationID.xy;
+    uint slice = gl_GlobalInvocationID.z;
     if (any(greaterThanEqual(node, node_size))) return;
     vec3 lo = vec3(3.0e38), hi = vec3(-3.0e38);
+    if (merge_slices) {
+        for (uint s = 0u; s < slices; ++s) {
+            lo = min(lo, boxes[2u * (child_first + s)].xyz);
+            hi = max(hi, boxes[2u * (child_first + s) + 1u].xyz);
+        }
+        boxes[2u * node_first] = vec4(lo, 0.0);
+        boxes[2u * node_first + 1u] = vec4(hi, 0.0);
+        return;
+    }
     for (uint y = 0u; y < uint(TILE); ++y) {
         for (uint x = 0u; x < uint(TILE); ++x) {
             uvec2 child = node * uint(TILE) + uvec2(x, y);
             if (any(greaterThanEqual(child, child_size))) continue;
             if (level == 1u) {
                 vec4 p = sample_position(child);
-                if (p.w < 0.5) continue;
+                uint s = (slices > 1u && p.w >= 0.5) ? depth_slice(p.xyz) : 0u;
+                if (slices > 1u && slice == 0u) sample_slices[child.y * child_size.x + child.x] = s;
+                if (p.w < 0.5 || s != slice) continue;
                 lo = min(lo, p.xyz);
                 hi = max(hi, p.xyz);
             } else {
-                uint index = child_first + child.y * child_size.x + child.x;
+                uint index = child_first + (slice * child_size.y + child.y) * child_size.x + child.x;
                 lo = min(lo, boxes[2u * index].xyz);
                 hi = max(hi, boxes[2u * index + 1u].xyz);
             }
         }
     }
-    uint index = node_first + node.y * node_size.x + node.x;
+    uint index = node_first + (slice * node_size.y + node.y) * node_size.x + node.x;
     boxes[2u * index] = vec4(lo, 0.0);
     boxes[2u * index + 1u] = vec4(hi, 0.0);
 }
