@@ -1,7 +1,8 @@
 """ptsv (issue 37): the same V as sv's exact volumes on the shipped scenes and the hard cases
 (the camera inside a shadow volume, a light behind the camera, a grazing light, spot and point
-lights), but for counted pixels each explained; a triangle whose volume holds every sample is
-accepted at the root; bad parameters are refused.
+lights), but for counted pixels each explained, with either hierarchy (tiles, clusters); a
+triangle whose volume holds every sample is accepted at the root; clusters test fewer samples
+than tiles where depth varies within a tile; bad parameters are refused.
 
 Broken versions each test was run against once (and failed):
 - a trivial accept that skips the depth test (``classify`` calling a box inside without the
@@ -11,6 +12,16 @@ Broken versions each test was run against once (and failed):
   test_same_v_as_sv fails on 26 of the 26 scenes;
 - the root's accept turned into a descent: test_volume_over_the_whole_screen fails (no root
   accept; four accepts, seven node tests below it).
+``hierarchy: clusters`` (the same tests, and the sample count on pins):
+- a cluster's box missing its farthest sample (level 1 of ptsv_boxes.comp.glsl leaving out the
+  sample of greatest view depth in each tile's slice): test_same_v_as_sv fails on 25 of the 30
+  scenes (1 to 39 pixels unexplained);
+- V reading every sample's node marks in slice 0 (ptsv_visibility.frag.glsl ignoring the
+  sample's slice): test_same_v_as_sv fails on 27 of the 30;
+- V ignoring the clusters' root mark: test_volume_over_the_whole_screen[clusters] fails (V = 1);
+- the depth slice computed from the linear depth instead of its log (every sample in the last
+  slice: clusters are tiles again): test_clusters_test_fewer_samples fails (135,038 sample tests
+  against the tiles' 128,492), while V stays right (a slice only groups the samples).
 """
 
 import numpy as np
