@@ -1,5 +1,6 @@
 """Per-triangle shadow volumes tested against a hierarchy of view samples (Sintorn, Olsson,
-Assarsson 2011)."""
+Assarsson 2011), of screen tiles or of view-sample clusters (Sintorn, Kampe, Olsson, Assarsson
+2014)."""
 
 from __future__ import annotations
 
@@ -26,13 +27,19 @@ class PerTriangleShadowVolumes(Technique):
     plane and the three planes through its edges and the light) is tested in a compute shader
     against a hierarchy over the G-buffer's samples, and the samples inside any volume are
     shadowed (Sintorn, Olsson, Assarsson 2011, "An efficient alias-free shadow algorithm for
-    opaque and transparent objects using per-triangle shadow volumes"; the clusters of
-    Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a view-sample
-    cluster hierarchy", are not built).
+    opaque and transparent objects using per-triangle shadow volumes"; ``hierarchy: clusters``
+    after Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a
+    view-sample cluster hierarchy").
 
     Every frame, inside timed passes: ``hierarchy`` builds, bottom up, the bounds of each
     ``tile`` x ``tile`` block of samples, then of each such block of blocks, up to one root
-    (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles);
+    (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles;
+    ``hierarchy: clusters``: each tile's samples split by view depth into ``slices`` slices, on a
+    log scale over the view depths the scene's bounds span, a box per tile and slice: a cluster
+    at the lowest level, and above it each slice's boxes merged per parent tile, as tiles do,
+    up to one root over the top level's slices; a tile's box no longer spans every depth it
+    holds, as it does where foliage's leaves scatter in depth. Unlike Sintorn 2014 the samples
+    are not sorted by their key: a cluster's samples are its tile's samples of its slice);
     ``volumes`` computes every triangle's volume from the frame's light (directional, spot or
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
     per-triangle volumes; in a closed part only the triangles facing the light, which shadow
@@ -51,15 +58,18 @@ class PerTriangleShadowVolumes(Technique):
     whole; ``root_accepts`` of them at the root), ``sample_tests``, ``triangles_culled``
     (edge-on, turned from the light in a closed part, or the root's box outside the volume),
     ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
-    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the queued volumes and the
-    work queues, which grow when a frame overflows them, up to 2^22 items a queue; past that
-    the triangles are traversed in batches (``hierarchy.py``).
+    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the samples' slices
+    (clusters), the queued volumes and the work queues, which grow when a frame overflows them,
+    up to 2^22 items a queue; past that the triangles are traversed in batches
+    (``hierarchy.py``).
 
     ==============  ====================================================  =======  ===========
     Parameter       Meaning                                               Default  Range
     ==============  ====================================================  =======  ===========
-    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile   tiles
+    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile;  tiles
+                    ``clusters``: per tile and depth slice
     ``tile``        children per node along each axis (a power of two)    2        2 .. 16
+    ``slices``      depth slices per tile (clusters only; log depth)      16       2 .. 64
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
                     magnification, as sv)
