@@ -185,7 +185,7 @@ class SampleHierarchy:
             _set(program, level=level, node_size=(w, h), child_size=(cw, ch),
                  node_first=self.node_first[level],
                  child_first=self.node_first[level - 1] if level > 1 else 0)
-            GL.glDispatchCompute(-(-w // 8), -(-h // 8), self.slices)
+            GL.glDispatchCompute(-(-w // 8), -(-h // 8), 1 if level == 1 else self.slices)
             _barrier()
         if self.slices > 1:
             program.set(merge_slices=True)
