@@ -6,11 +6,11 @@ nodes, each the ``tile`` x ``tile`` nodes (or samples) below it, up to a single 
 clusters (``slices`` > 1, Sintorn et al. 2014) each level holds that grid once per depth slice
 (a node bounds only its slice's samples: a cluster at level 1), and one root above the top
 level's slices. Node numbers run level 1 first, slice-major within a level; the marks buffer
-holds one flag per sample, then one per node. The
-traversal queues (volume, node) items in two regions used in turn (level k in region k & 1),
-each of ``capacity`` items; the planes buffer holds the queued triangles' volumes. Both grow
-when a frame overflows them (counted on the GPU, read back once after the traversal, which then
-runs again with room): memory follows the scene instead of a worst case.
+holds one flag per sample, then one per node. The traversal queues (volume, node) items in two
+regions used in turn (level k in region k & 1), each of ``capacity`` items; the planes buffer
+holds the queued triangles' volumes. Both grow when a frame overflows them (counted on the GPU,
+read back once after the traversal, which then runs again with room): memory follows the scene
+instead of a worst case.
 """
 
 from __future__ import annotations
@@ -97,7 +97,8 @@ def _rows(groups: int) -> tuple[int, int]:
 
 
 class SampleHierarchy:
-    """Buffers and programs for one image size, tile and mask divisor."""
+    """Buffers and programs for one image size, tile, mask divisor and number of depth slices
+    (1: tiles)."""
 
     def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray,
                  slices: int = 1):
