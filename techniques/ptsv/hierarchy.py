@@ -2,12 +2,15 @@
 level-by-level traversal, with the buffers they share (a helper of the technique, not one).
 
 Levels: level 0 is the samples (the G-buffer at the mask's resolution), level k >= 1 a grid of
-nodes, each the ``tile`` x ``tile`` nodes (or samples) below it, up to a single root. Node
-numbers run level 1 first; the marks buffer holds one flag per sample, then one per node. The
-traversal queues (volume, node) items in two regions used in turn (level k in region k & 1),
-each of ``capacity`` items; the planes buffer holds the queued triangles' volumes. Both grow
-when a frame overflows them (counted on the GPU, read back once after the traversal, which then
-runs again with room): memory follows the scene instead of a worst case.
+nodes, each the ``tile`` x ``tile`` nodes (or samples) below it, up to a single root. With
+clusters (``slices`` > 1, Sintorn et al. 2014) each level holds that grid once per depth slice
+(a node bounds only its slice's samples: a cluster at level 1), and one root above the top
+level's slices. Node numbers run level 1 first, slice-major within a level; the marks buffer
+holds one flag per sample, then one per node. The traversal queues (volume, node) items in two
+regions used in turn (level k in region k & 1), each of ``capacity`` items; the planes buffer
+holds the queued triangles' volumes. Both grow when a frame overflows them (counted on the GPU,
+read back once after the traversal, which then runs again with room): memory follows the scene
+instead of a worst case.
 """
 
 from __future__ import annotations
@@ -94,18 +97,21 @@ def _rows(groups: int) -> tuple[int, int]:
 
 
 class SampleHierarchy:
-    """Buffers and programs for one image size, tile and mask divisor."""
+    """Buffers and programs for one image size, tile, mask divisor and number of depth slices
+    (1: tiles)."""
 
-    def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray):
+    def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray,
+                 slices: int = 1):
         triangles = len(closed_side)
-        self.divisor, self.tile, self.triangles = divisor, tile, triangles
+        self.divisor, self.tile, self.triangles, self.slices = divisor, tile, triangles, slices
         self.sizes = level_sizes(-(-width // divisor), -(-height // divisor), tile)
         self.levels = len(self.sizes) - 1
         self.samples = self.sizes[0][0] * self.sizes[0][1]
-        nodes = [w * h for w, h in self.sizes[1:]]
-        self.node_first = [0, *np.cumsum([0] + nodes[:-1]).tolist()]  # by level, [0] unused
-        self.nodes = int(sum(nodes))
-        self.root = self.node_first[self.levels]
+        nodes = [w * h * slices for w, h in self.sizes[1:]]
+        self.node_first = [0, *np.cumsum([0] + nodes).tolist()]  # by level, [0] unused
+        # tiles: the top level's one node; clusters: one more node over the top level's slices
+        self.root = self.node_first[self.levels] if slices == 1 else self.node_first[-1]
+        self.nodes = self.root + 1
         self.items_per_group = max(1, 64 // (tile * tile))
         defines = {"TILE": tile, "ITEMS_PER_GROUP": self.items_per_group,
                    "GROUP_SIZE": tile * tile * self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
@@ -124,6 +130,7 @@ class SampleHierarchy:
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
         self.dispatch = _storage(12)
+        self.sample_slices = _storage(self.samples * 4 if slices > 1 else 0)
         self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
         GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
@@ -139,6 +146,7 @@ class SampleHierarchy:
     def mem_bytes(self) -> int:
         """What the hierarchy, marks, volumes and work queues hold."""
         return (self.nodes * BOX_BYTES + (self.samples + self.nodes) * 4
+                + (self.samples * 4 if self.slices > 1 else 0)
                 + 2 * self.capacity * ITEM_BYTES + self.volume_capacity * PLANES_BYTES
                 + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + 4 * self.triangles)
 
@@ -156,22 +164,35 @@ class SampleHierarchy:
 
     def _bind(self) -> None:
         for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
-                                (5, self.queues), (6, self.counters)):
+                                (5, self.queues), (6, self.counters), (9, self.sample_slices)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
 
-    def build(self, position: Texture, origin: np.ndarray) -> None:
+    def build(self, position: Texture, origin: np.ndarray, depth_plane: np.ndarray,
+              depth_range: tuple[float, float]) -> None:
         """Each level's node boxes from the G-buffer's positions (relative to ``origin``),
-        bottom up."""
+        bottom up. With clusters, a sample's slice is its view depth (``depth_plane`` . (p, 1),
+        p relative to ``origin``) on a log scale over ``depth_range``, cut in ``slices``."""
         self._bind()
         program = self.box_program.use()
+        near, far = depth_range
+        scale = self.slices / np.log(max(far / near, 1.0 + 1e-6))
         program.set(gbuffer_position=position.bind(0), divisor=self.divisor,
-                    origin=np.asarray(origin, np.float32))
+                    origin=np.asarray(origin, np.float32), merge_slices=False,
+                    depth_plane=np.asarray(depth_plane, np.float32),
+                    slice_map=np.array([scale, -np.log(near) * scale], np.float32))
+        _set(program, slices=self.slices)
         for level in range(1, self.levels + 1):
             (w, h), (cw, ch) = self.sizes[level], self.sizes[level - 1]
             _set(program, level=level, node_size=(w, h), child_size=(cw, ch),
                  node_first=self.node_first[level],
                  child_first=self.node_first[level - 1] if level > 1 else 0)
-            GL.glDispatchCompute(-(-w // 8), -(-h // 8), 1)
+            GL.glDispatchCompute(-(-w // 8), -(-h // 8), 1 if level == 1 else self.slices)
+            _barrier()
+        if self.slices > 1:
+            program.set(merge_slices=True)
+            _set(program, node_size=(1, 1), node_first=self.root,
+                 child_first=self.node_first[self.levels])
+            GL.glDispatchCompute(1, 1, 1)
             _barrier()
 
     def traverse(self, position: Texture, vertices: int, indices: int, light: np.ndarray,
@@ -214,10 +235,12 @@ class SampleHierarchy:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
         shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
-                      volume_capacity=self.volume_capacity, sample_count=self.samples)
+                      volume_capacity=self.volume_capacity, sample_count=self.samples,
+                      slices=self.slices)
         setup = self.setup_programs[count].use()
         _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
-             triangle_end=end, root=self.root, root_level=self.levels, **shared)
+             triangle_end=end, root=self.root, root_level=self.levels,
+             top_first=self.node_first[self.levels], **shared)
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
         traverse = self.traverse_programs[count]
@@ -230,7 +253,7 @@ class SampleHierarchy:
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
             cw, ch = self.sizes[level - 1]
-            _set(traverse.use(), level=level, node_width=self.sizes[level][0],
+            _set(traverse.use(), level=level, node_size=self.sizes[level],
                  child_size=(cw, ch), child_first=self.node_first[level - 1] if level > 1 else 0)
             GL.glDispatchComputeIndirect(0)
             _barrier()
@@ -253,8 +276,8 @@ class SampleHierarchy:
         return out
 
     def release(self) -> None:
-        GL.glDeleteBuffers(7, [self.boxes, self.marks, self.counters, self.dispatch,
-                               self.queues, self.planes, self.closed_side])
+        GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
+                               self.queues, self.planes, self.closed_side, self.sample_slices])
         for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),
                         *self.traverse_programs.values()):
             program.release()

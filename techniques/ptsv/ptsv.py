@@ -1,5 +1,6 @@
 """Per-triangle shadow volumes tested against a hierarchy of view samples (Sintorn, Olsson,
-Assarsson 2011)."""
+Assarsson 2011), of screen tiles or of view-sample clusters (Sintorn, Kampe, Olsson, Assarsson
+2014)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from OpenGL import GL
 from pydantic import Field, field_validator
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.transforms import box_corners
 
 from .hierarchy import SampleHierarchy, closed_sides
 
@@ -25,13 +27,19 @@ class PerTriangleShadowVolumes(Technique):
     plane and the three planes through its edges and the light) is tested in a compute shader
     against a hierarchy over the G-buffer's samples, and the samples inside any volume are
     shadowed (Sintorn, Olsson, Assarsson 2011, "An efficient alias-free shadow algorithm for
-    opaque and transparent objects using per-triangle shadow volumes"; the clusters of
-    Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a view-sample
-    cluster hierarchy", are not built).
+    opaque and transparent objects using per-triangle shadow volumes"; ``hierarchy: clusters``
+    after Sintorn, Kampe, Olsson, Assarsson 2014, "Per-triangle shadow volumes using a
+    view-sample cluster hierarchy").
 
     Every frame, inside timed passes: ``hierarchy`` builds, bottom up, the bounds of each
     ``tile`` x ``tile`` block of samples, then of each such block of blocks, up to one root
-    (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles);
+    (``hierarchy: tiles``: world-space boxes per screen tile, the 3D bounds of Sintorn's tiles;
+    ``hierarchy: clusters``: each tile's samples split by view depth into ``slices`` slices, on a
+    log scale over the view depths the scene's bounds span, a box per tile and slice: a cluster
+    at the lowest level, and above it each slice's boxes merged per parent tile, as tiles do,
+    up to one root over the top level's slices; a tile's box no longer spans every depth it
+    holds, as it does where foliage's leaves scatter in depth. Unlike Sintorn 2014 the samples
+    are not sorted by their key: a cluster's samples are its tile's samples of its slice);
     ``volumes`` computes every triangle's volume from the frame's light (directional, spot or
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
     per-triangle volumes; in a closed part only the triangles facing the light, which shadow
@@ -50,15 +58,18 @@ class PerTriangleShadowVolumes(Technique):
     whole; ``root_accepts`` of them at the root), ``sample_tests``, ``triangles_culled``
     (edge-on, turned from the light in a closed part, or the root's box outside the volume),
     ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
-    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the queued volumes and the
-    work queues, which grow when a frame overflows them, up to 2^22 items a queue; past that
-    the triangles are traversed in batches (``hierarchy.py``).
+    (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the samples' slices
+    (clusters), the queued volumes and the work queues, which grow when a frame overflows them,
+    up to 2^22 items a queue; past that the triangles are traversed in batches
+    (``hierarchy.py``).
 
     ==============  ====================================================  =======  ===========
     Parameter       Meaning                                               Default  Range
     ==============  ====================================================  =======  ===========
-    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile   tiles
+    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile;  tiles
+                    ``clusters``: per tile and depth slice
     ``tile``        children per node along each axis (a power of two)    2        2 .. 16
+    ``slices``      depth slices per tile (clusters only; log depth)      16       2 .. 64
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
                     magnification, as sv)
@@ -77,8 +88,9 @@ class PerTriangleShadowVolumes(Technique):
     rivals = ("sv", "rt")  # the other exact methods: volumes with fill, rays
 
     class Params(TechniqueParams):
-        hierarchy: Literal["tiles"] = "tiles"
+        hierarchy: Literal["tiles", "clusters"] = "tiles"
         tile: int = Field(2, ge=2, le=16)
+        slices: int = Field(16, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
 
         @field_validator("tile")
@@ -94,7 +106,8 @@ class PerTriangleShadowVolumes(Technique):
         scene = frame.scene
         sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
                              scene.edges.closed)
-        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides)
+        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides,
+                                         p.slices if p.hierarchy == "clusters" else 1)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "ptsv_visibility.frag.glsl", TILE=p.tile)
         self.counted_for = None
@@ -108,6 +121,18 @@ class PerTriangleShadowVolumes(Technique):
     def _origin(frame: Frame) -> np.ndarray:
         """The centre of the scene's bounds, in float32: positions are taken relative to it."""
         return frame.scene.bounds.mean(axis=0).astype(np.float32)
+
+    @staticmethod
+    def _depths(frame: Frame) -> tuple[np.ndarray, tuple[float, float]]:
+        """View depth as a plane over positions relative to ``_origin``, and the range of view
+        depths the scene's bounds span within the camera's near and far (the clusters' slices
+        cut it)."""
+        view, camera = frame.camera.view, frame.scene.config.camera
+        origin = PerTriangleShadowVolumes._origin(frame).astype(np.float64)
+        plane = np.append(-view[2, :3], -(view[2, :3] @ origin + view[2, 3]))
+        depths = box_corners(frame.scene.bounds) @ -view[2, :3] - view[2, 3]
+        near = min(max(depths.min(), camera.near), camera.far)
+        return plane, (near, max(min(depths.max(), camera.far), near))
 
     def _light(self, frame: Frame) -> np.ndarray:
         light = frame.scene.light
@@ -123,7 +148,7 @@ class PerTriangleShadowVolumes(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy
         with frame.measure("hierarchy"):
-            h.build(frame.gbuffer.position_texture, self._origin(frame))
+            h.build(frame.gbuffer.position_texture, self._origin(frame), *self._depths(frame))
         with frame.measure("volumes"):
             self._traverse(frame)
         with frame.measure("visibility"):
@@ -132,7 +157,9 @@ class PerTriangleShadowVolumes(Technique):
             frame.bind_gbuffer(program)
             program.set(levels=h.levels, magnify=self.divisor > 1)
             GL.glUniform2ui(program.location("mask_size"), *h.sizes[0])
+            GL.glUniform1ui(program.location("slices"), h.slices)
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 4, h.marks)
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 9, h.sample_slices)
             frame.draw_fullscreen(covered_only=True)
         self._count(frame)
         taps = 1 if self.divisor == 1 else 4

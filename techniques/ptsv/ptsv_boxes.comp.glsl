@@ -1,7 +1,12 @@
 // The hierarchy over the view samples, one level per dispatch: each node's box is the
 // axis-aligned bounds (world space) of its TILE x TILE children, samples for level 1 (their
 // G-buffer positions, covered ones only), nodes of the level below otherwise. A node without a
-// covered sample gets an empty box (lo > hi), which every test skips.
+// covered sample gets an empty box (lo > hi), which every test skips. With clusters
+// (`slices` > 1) a node is one depth slice of its tile: its box bounds that slice's samples or
+// child nodes only. At level 1 one invocation takes a tile's every slice (each sample read
+// once, its slice stored and its position added to its slice's box); above it, one invocation
+// per node (its slice gl_GlobalInvocationID.z); a last dispatch (`merge_slices`) bounds the
+// root over the top level's slices.
 #include "ptsv_volume.glsl"
 #include "ptsv_samples.glsl"
 
@@ -11,11 +16,43 @@ uniform uvec2 node_size;  // nodes per row and column at this level
 uniform uvec2 child_size;
 uniform uint node_first;  // node number of this level's first node
 uniform uint child_first;  // of the level below's (level > 1)
+uniform bool merge_slices;  // the root: node_first's box over child_first's `slices` nodes
 
 void main() {
     uvec2 node = gl_GlobalInvocationID.xy;
+    uint slice = gl_GlobalInvocationID.z;
     if (any(greaterThanEqual(node, node_size))) return;
     vec3 lo = vec3(3.0e38), hi = vec3(-3.0e38);
+    uint tiles = node_size.x * node_size.y, tile = node.y * node_size.x + node.x;
+    if (merge_slices) {
+        for (uint s = 0u; s < slices; ++s) {
+            lo = min(lo, boxes[2u * (child_first + s)].xyz);
+            hi = max(hi, boxes[2u * (child_first + s) + 1u].xyz);
+        }
+        boxes[2u * node_first] = vec4(lo, 0.0);
+        boxes[2u * node_first + 1u] = vec4(hi, 0.0);
+        return;
+    }
+    if (level == 1u && slices > 1u) {
+        for (uint s = 0u; s < slices; ++s) {
+            boxes[2u * (node_first + s * tiles + tile)] = vec4(lo, 0.0);
+            boxes[2u * (node_first + s * tiles + tile) + 1u] = vec4(hi, 0.0);
+        }
+        for (uint y = 0u; y < uint(TILE); ++y) {
+            for (uint x = 0u; x < uint(TILE); ++x) {
+                uvec2 child = node * uint(TILE) + uvec2(x, y);
+                if (any(greaterThanEqual(child, child_size))) continue;
+                vec4 p = sample_position(child);
+                uint s = p.w < 0.5 ? 0u : depth_slice(p.xyz);
+                sample_slices[child.y * child_size.x + child.x] = s;
+                if (p.w < 0.5) continue;
+                uint index = 2u * (node_first + s * tiles + tile);
+                boxes[index] = vec4(min(boxes[index].xyz, p.xyz), 0.0);
+                boxes[index + 1u] = vec4(max(boxes[index + 1u].xyz, p.xyz), 0.0);
+            }
+        }
+        return;
+    }
     for (uint y = 0u; y < uint(TILE); ++y) {
         for (uint x = 0u; x < uint(TILE); ++x) {
             uvec2 child = node * uint(TILE) + uvec2(x, y);
@@ -26,13 +63,13 @@ void main() {
                 lo = min(lo, p.xyz);
                 hi = max(hi, p.xyz);
             } else {
-                uint index = child_first + child.y * child_size.x + child.x;
+                uint index = child_first + (slice * child_size.y + child.y) * child_size.x + child.x;
                 lo = min(lo, boxes[2u * index].xyz);
                 hi = max(hi, boxes[2u * index + 1u].xyz);
             }
         }
     }
-    uint index = node_first + node.y * node_size.x + node.x;
+    uint index = node_first + slice * tiles + tile;
     boxes[2u * index] = vec4(lo, 0.0);
     boxes[2u * index + 1u] = vec4(hi, 0.0);
 }

@@ -9,3 +9,15 @@ vec4 sample_position(uvec2 s) {
     vec4 p = texelFetch(gbuffer_position, pixel, 0);
     return vec4(p.xyz - origin, p.w);
 }
+
+// Clusters (`slices` > 1): a covered sample's depth slice, its view depth quantised in log scale
+// between the nearest and farthest view depths of the scene's bounds (slices at either end take
+// what lies beyond); the box pass stores it per sample, which the traversal and V then read.
+layout(std430, binding = 9) buffer Slices { uint sample_slices[]; };
+uniform vec4 depth_plane;  // view depth of a position relative to `origin`: dot(xyz, p) + w
+uniform vec2 slice_map;  // slice = floor(log(depth) * x + y), clamped to 0 .. slices - 1
+
+uint depth_slice(vec3 p) {
+    float depth = max(dot(depth_plane.xyz, p) + depth_plane.w, 1.0e-30);
+    return uint(clamp(floor(log(depth) * slice_map.x + slice_map.y), 0.0, float(slices - 1u)));
+}

@@ -3,7 +3,8 @@
 // closed part's triangles turned from the light; every other triangle casts, turned toward the
 // light (an open part's back-facing triangle shadows as much as a front-facing one). A volume
 // the root box lies outside of is culled; one that holds the root box marks the root; any
-// other is queued for the level below the root.
+// other is queued for the level below the root (with clusters, the root's children, one per
+// depth slice, are tested here and queued for the level below theirs).
 #include "ptsv_volume.glsl"
 
 layout(local_size_x = 64) in;
@@ -19,6 +20,7 @@ uniform uint first_triangle;  // this batch's triangles: first_triangle .. trian
 uniform uint triangle_end;
 uniform uint root;  // the root's node number
 uniform uint root_level;
+uniform uint top_first;  // clusters: node number of the top level's first slice (the root's children)
 
 vec3 corner(uint triangle, uint k) {
     uint i = 3u * index_data[3u * triangle + k];
@@ -72,6 +74,21 @@ void main() {
         uint queued = atomicAdd(counters[COUNT_VOLUMES], 1u);
         if (queued >= volume_capacity) return;  // counted: the caller makes room, runs again
         for (uint k = 0u; k < 4u; ++k) planes[4u * queued + k] = volume[k];
-        push(root_level, queued, 0u);
+        if (slices == 1u) {
+            push(root_level, queued, 0u);
+            return;
+        }
+        for (uint slice = 0u; slice < slices; ++slice) {  // clusters: the root's children here
+            node_box(top_first + slice, lo, hi);
+            if (any(greaterThan(lo, hi))) continue;
+            TALLY(COUNT_NODE_TESTS);
+            test = classify(volume, lo, hi);
+            if (test > 0) {
+                mark_node(top_first + slice);
+                TALLY(COUNT_ACCEPTS);
+            } else if (test == 0) {
+                push(root_level, queued, slice);
+            }
+        }
     }
 }

@@ -1,26 +1,31 @@
 // V from the marks: a sample is shadowed where it, or any node above it, was marked (a node
-// inside a volume is marked whole, never its samples). A mask smaller than the image is
+// inside a volume is marked whole, never its samples); with clusters, the nodes of the
+// sample's depth slice, then the root. A mask smaller than the image is
 // magnified bilinearly, as sv's (sv_visibility.frag.glsl), giving fractional V near edges.
 #include "gbuffer_read.glsl"
 
 layout(std430, binding = 4) readonly buffer Marks { uint marks[]; };
+layout(std430, binding = 9) readonly buffer Slices { uint sample_slices[]; };  // clusters'
 uniform uvec2 mask_size;  // samples per row and column
 uniform int levels;  // node levels above the samples
+uniform uint slices;  // depth slices per tile (ptsv_volume.glsl); > 1: a root above the levels
 uniform bool magnify;
 layout(location = 0) out float visibility;
 
 float lit(ivec2 texel) {
     uvec2 s = uvec2(clamp(texel, ivec2(0), ivec2(mask_size) - 1));
-    if (marks[s.y * mask_size.x + s.x] != 0u) return 0.0;
+    uint index = s.y * mask_size.x + s.x;
+    if (marks[index] != 0u) return 0.0;
+    uint slice = slices > 1u ? sample_slices[index] : 0u;
     uint first = mask_size.x * mask_size.y;  // the level's first mark
     uvec2 size = mask_size;
     for (int k = 1; k <= levels; ++k) {
         s /= uint(TILE);
         size = (size + uint(TILE) - 1u) / uint(TILE);
-        if (marks[first + s.y * size.x + s.x] != 0u) return 0.0;
-        first += size.x * size.y;
+        if (marks[first + (slice * size.y + s.y) * size.x + s.x] != 0u) return 0.0;
+        first += size.x * size.y * slices;
     }
-    return 1.0;
+    return slices > 1u && marks[first] != 0u ? 0.0 : 1.0;
 }
 
 void main() {

@@ -27,6 +27,10 @@ uniform float tie;  // how far behind its own plane a point must be to be shadow
 uniform uint capacity;  // items per queue region
 uniform uint volume_capacity;  // rows of 4 planes in `planes`
 uniform uint sample_count;  // marks before the nodes': node i's mark is sample_count + i
+// Depth slices per screen tile: 1 for `hierarchy: tiles`; for `clusters`, each level's nodes are
+// (tile, slice) pairs, numbered slice-major (a level's first node, then slice * its tiles), a
+// node holding only the samples of its depth slice, and one root over the top level's slices.
+uniform uint slices;
 
 #ifdef COUNT
 #define TALLY(what) atomicAdd(counters[what], 1u)
