@@ -47,8 +47,11 @@ class TwoLevelBvh:
 
     def __init__(self, parts, build: str, leaf_size: int):
         self.used = [i for i, part in enumerate(parts) if len(part.faces)]
-        records, triangles, roots, depths = [], [], [], []
-        record_offset = triangle_offset = 0
+        # the top level's records first, in the same buffer: one fetch path for both levels
+        self.top_records = bvh.max_records(len(self.used))
+        top_slots = max(self.top_records, 1)
+        records, triangles, roots, depths = [np.zeros((4 * top_slots, 4), np.float32)], [], [], []
+        record_offset, triangle_offset = top_slots, 0
         for i in self.used:  # one build per part, each vectorised over its triangles
             part = parts[i]
             corners = part.vertices[part.faces]
@@ -63,20 +66,17 @@ class TwoLevelBvh:
             record_offset += tree.record_count
             triangle_offset += len(tree.order)
         self.empty = not self.used
-        self.record_count, self.triangle_count = record_offset, triangle_offset
+        self.record_count, self.triangle_count = record_offset - top_slots, triangle_offset
         self.root_entries = np.array([r[0] for r in roots], np.uint32)
         self.root_lo = np.array([r[1] for r in roots], np.float32).reshape(-1, 3)
         self.root_hi = np.array([r[2] for r in roots], np.float32).reshape(-1, 3)
         self.bottom_depth = max(depths, default=0)
-        self.top_records = bvh.max_records(len(self.used))
         self.top_root = 0  # the top level's root entry: a record, or one instance's leaf
         self.top_depth = bvh.lbvh_depth_bound(len(self.used))  # whatever the poses
         empty = np.zeros((1, 4), np.float32)
-        self.nodes = BufferTexture(np.concatenate(records + [empty]), GL.GL_RGBA32F)
+        self.nodes = BufferTexture(np.concatenate(records), GL.GL_RGBA32F, dynamic=True)
         self.triangles = BufferTexture(np.concatenate(triangles) if triangles else empty,
                                        GL.GL_RGBA32F)
-        self.top = BufferTexture(np.zeros((4 * max(self.top_records, 1), 4), np.float32),
-                                 GL.GL_RGBA32F, dynamic=True)
         self.instances = BufferTexture(np.zeros((4 * max(len(self.used), 1), 4), np.float32),
                                        GL.GL_RGBA32F, dynamic=True)
 
@@ -105,20 +105,19 @@ class TwoLevelBvh:
         top = bvh.build(lo, hi, "lbvh", leaf_size=1)
         self.top_root = int(top.entries()[0])
         if top.record_count:
-            self.top.write(top.texels())
+            self.nodes.write(top.texels())
         instances = np.zeros((len(self.used), 4, 4), np.float32)
         instances[:, :3] = np.linalg.inv(poses)[:, :3]
         instances[:, 3, 0] = self.root_entries.view(np.float32)
         self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
 
     def bind(self, program, first_unit: int) -> int:
-        """Bind the four buffer textures to ``program``'s samplers; returns the next unit."""
+        """Bind the three buffer textures to ``program``'s samplers; returns the next unit."""
         program.set(tlas_root=self.top_root, nodes=self.nodes.bind(first_unit),
                     triangles=self.triangles.bind(first_unit + 1),
-                    tlas=self.top.bind(first_unit + 2),
-                    instances=self.instances.bind(first_unit + 3))
-        return first_unit + 4
+                    instances=self.instances.bind(first_unit + 2))
+        return first_unit + 3
 
     def release(self) -> None:
-        for texture in (self.nodes, self.triangles, self.top, self.instances):
+        for texture in (self.nodes, self.triangles, self.instances):
             texture.release()

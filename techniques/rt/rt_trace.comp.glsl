@@ -13,9 +13,9 @@ layout(rgba32ui, binding = 1) writeonly uniform uimage2D counts;
 #endif
 uniform sampler2D gbuffer_position;
 uniform sampler2D gbuffer_normal;
-uniform samplerBuffer nodes;      // all parts' bottom-level records (bvh.py's texels)
+uniform samplerBuffer nodes;      // the top level's records, then all parts' bottom-level
+                                  // ones (bvh.py's texels); a top-level leaf is one instance
 uniform samplerBuffer triangles;  // 3 texels (vertices) per triangle, in leaf order
-uniform samplerBuffer tlas;       // top-level records, the same layout; a leaf is one instance
 uniform int tlas_root;            // the top level's root entry
 uniform samplerBuffer instances;  // 4 texels: rows of world-to-object 3x4, (root entry, ...)
 uniform int divisor;              // image pixels per mask texel along each axis
@@ -88,10 +88,8 @@ bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, o
             }
             visited++;
             int at = int(4u * entry);
-            vec4 lo0 = bottom ? texelFetch(nodes, at) : texelFetch(tlas, at);
-            vec4 hi0 = bottom ? texelFetch(nodes, at + 1) : texelFetch(tlas, at + 1);
-            vec4 lo1 = bottom ? texelFetch(nodes, at + 2) : texelFetch(tlas, at + 2);
-            vec4 hi1 = bottom ? texelFetch(nodes, at + 3) : texelFetch(tlas, at + 3);
+            vec4 lo0 = texelFetch(nodes, at), hi0 = texelFetch(nodes, at + 1);
+            vec4 lo1 = texelFetch(nodes, at + 2), hi1 = texelFetch(nodes, at + 3);
             float enter0 = box_enter(lo0.xyz, hi0.xyz, origin, inv, tmax);
             float enter1 = box_enter(lo1.xyz, hi1.xyz, origin, inv, tmax);
             bool hit0 = enter0 >= 0.0, hit1 = enter1 >= 0.0;
