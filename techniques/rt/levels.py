@@ -32,13 +32,17 @@ def bound_bytes(triangles: int) -> int:
 
 
 def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):
-    """World boxes of boxes ``lo``/``hi`` (P, 3) moved by ``poses`` (P, 4, 4), over their 8
-    corners in float64, widened to the next float32 outwards (never smaller than exact)."""
-    pick = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], bool)
-    corners = np.where(pick[None], hi[:, None].astype(np.float64), lo[:, None])
-    moved = np.einsum("pij,pcj->pci", poses[:, :3, :3], corners) + poses[:, None, :3, 3]
-    low = np.nextafter(moved.min(1).astype(np.float32), np.float32(-np.inf))
-    high = np.nextafter(moved.max(1).astype(np.float32), np.float32(np.inf))
+    """World boxes of boxes ``lo``/``hi`` (P, 3) moved by the rigid ``poses`` (P, 4, 4): the
+    centre moved, the half extents through the rotation's absolute values (Arvo 1990: the
+    bounds of the 8 moved corners), in float64, widened to the next float32 outwards (never
+    smaller than exact)."""
+    centre = (lo.astype(np.float64) + hi) / 2
+    half = (hi.astype(np.float64) - lo) / 2
+    rotation = poses[:, :3, :3]
+    centre = np.matmul(rotation, centre[..., None])[..., 0] + poses[:, :3, 3]
+    half = np.matmul(np.abs(rotation), half[..., None])[..., 0]
+    low = np.nextafter((centre - half).astype(np.float32), np.float32(-np.inf))
+    high = np.nextafter((centre + half).astype(np.float32), np.float32(np.inf))
     return low, high
 
 
@@ -107,7 +111,10 @@ class TwoLevelBvh:
         if top.record_count:
             self.nodes.write(top.texels())
         instances = np.zeros((len(self.used), 4, 4), np.float32)
-        instances[:, :3] = np.linalg.inv(poses)[:, :3]
+        # a rigid pose's inverse: the rotation transposed, the translation taken back
+        inverse = np.transpose(poses[:, :3, :3], (0, 2, 1))
+        instances[:, :3, :3] = inverse
+        instances[:, :3, 3] = -np.matmul(inverse, poses[:, :3, 3, None])[..., 0]
         instances[:, 3, 0] = self.root_entries.view(np.float32)
         self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
 
