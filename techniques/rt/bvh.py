@@ -92,60 +92,116 @@ def _lbvh_split(codes: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.nda
     return np.where(differ == 0, (start + end) // 2, split)
 
 
-def _sah_split(order, lo, hi, centroids, start, end) -> np.ndarray:
-    """Binned SAH split of each node [start, end). ``order`` and the primitives' boxes and
-    centroids (in ``order``'s order) are permuted in place."""
-    counts = end - start
-    m = len(start)
-    node = np.repeat(np.arange(m), counts)
-    pos = np.repeat(start - np.concatenate(([0], np.cumsum(counts)[:-1])), counts) + \
-        np.arange(counts.sum())
-    c = centroids[pos]
-    seg = np.concatenate(([0], np.cumsum(counts)[:-1]))
-    cmin, cmax = np.minimum.reduceat(c, seg), np.maximum.reduceat(c, seg)
-    axis = np.argmax(cmax - cmin, axis=1)
+def _area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Half the surface area of boxes given as (3, ...) corners (0 for an empty box)."""
+    d = np.maximum(hi - lo, 0)
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+
+
+def _sah_level(box, cen, size):
+    """Binned SAH over one level's nodes, whose primitives fill ``box`` (6, P) float32
+    corners and ``cen`` (3, P) float64 centroids node after node (``size`` each). Returns
+    each node's left count and its children's boxes (6, M) (NaN where the node has no SAH
+    split: all its centroids in one bin), and each primitive's node and side (True: left)."""
+    m, p = len(size), box.shape[1]
+    seg = np.cumsum(size) - size
+    node = np.repeat(np.arange(m), size)
+    cmin, cmax = np.minimum.reduceat(cen, seg, axis=1), np.maximum.reduceat(cen, seg, axis=1)
+    axis = np.argmax(cmax - cmin, axis=0)
     rows = np.arange(m)
-    extent, base = (cmax - cmin)[rows, axis], cmin[rows, axis]
-    ca = c[np.arange(len(c)), axis[node]]
+    extent, base = (cmax - cmin)[axis, rows], cmin[axis, rows]
     scale = np.where(extent > 0, SAH_BINS / np.where(extent > 0, extent, 1), 0)
+    ca = cen.ravel()[axis[node] * p + np.arange(p)]
     bins = np.clip(((ca - base[node]) * scale[node]).astype(np.int64), 0, SAH_BINS - 1)
-    key = node * SAH_BINS + bins
-    bin_count = np.bincount(key, minlength=m * SAH_BINS).reshape(m, SAH_BINS)
-    # each non-empty bin's box: primitives grouped by bin (timsort: already grouped by node)
-    grouped = np.argsort(key, kind="stable")
-    heads = np.flatnonzero(np.diff(key[grouped], prepend=-1))
-    filled = key[grouped[heads]]
-    bin_lo = np.full((m * SAH_BINS, 3), np.inf, np.float32)
-    bin_hi = np.full((m * SAH_BINS, 3), -np.inf, np.float32)
-    bin_lo[filled] = np.minimum.reduceat(lo[pos][grouped], heads)
-    bin_hi[filled] = np.maximum.reduceat(hi[pos][grouped], heads)
-    bin_lo, bin_hi = bin_lo.reshape(m, SAH_BINS, 3), bin_hi.reshape(m, SAH_BINS, 3)
-
-    def area(a, b):
-        d = np.maximum(b - a, 0)
-        return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
-
-    left_n = np.cumsum(bin_count, axis=1)[:, :-1]
-    left_area = area(np.minimum.accumulate(bin_lo, axis=1), np.maximum.accumulate(bin_hi, axis=1))
-    right_area = area(np.minimum.accumulate(bin_lo[:, ::-1], axis=1)[:, ::-1],
-                      np.maximum.accumulate(bin_hi[:, ::-1], axis=1)[:, ::-1])
-    right_n = counts[:, None] - left_n
-    cost = left_n * left_area[:, :-1] + right_n * right_area[:, 1:]
+    # each bin's count and box, bin-major: (6, bin, node); no sort, one ufunc.at per corner
+    key = bins * m + node
+    bin_count = np.bincount(key, minlength=SAH_BINS * m).reshape(SAH_BINS, m)
+    bin_box = np.empty((6, SAH_BINS * m), np.float32)
+    bin_box[:3], bin_box[3:] = np.inf, -np.inf
+    for k in range(6):
+        (np.minimum if k < 3 else np.maximum).at(bin_box[k], key, box[k])
+    bin_box = bin_box.reshape(6, SAH_BINS, m)
+    # boxes of bins 0..b (left) and b..15 (right), accumulated bin by bin
+    left, right = np.empty_like(bin_box), np.empty_like(bin_box)
+    left[:, 0], right[:, -1] = bin_box[:, 0], bin_box[:, -1]
+    for b in range(1, SAH_BINS):
+        np.minimum(left[:3, b - 1], bin_box[:3, b], out=left[:3, b])
+        np.maximum(left[3:, b - 1], bin_box[3:, b], out=left[3:, b])
+        c = SAH_BINS - 1 - b
+        np.minimum(right[:3, c + 1], bin_box[:3, c], out=right[:3, c])
+        np.maximum(right[3:, c + 1], bin_box[3:, c], out=right[3:, c])
+    left_n = np.cumsum(bin_count, axis=0)[:-1]
+    right_n = size - left_n
+    cost = left_n * _area(left[:3, :-1], left[3:, :-1]) + right_n * _area(right[:3, 1:], right[3:, 1:])
     cost = np.where((left_n > 0) & (right_n > 0), cost, np.inf)
-    best = np.argmin(cost, axis=1)
-    splittable = np.isfinite(cost[rows, best])
-    # partition each node's range stably: its left bins first
-    left = bins <= best[node]
-    left_before = np.cumsum(left) - left
-    right_before = np.arange(len(left)) - left_before
-    seg_left, seg_right = left_before[seg], right_before[seg]
-    n_left = left_n[rows, best]
-    dest = np.where(left, start[node] + left_before - seg_left[node],
-                    start[node] + n_left[node] + right_before - seg_right[node])
-    moved = splittable[node]
-    for array in (order, lo, hi, centroids):  # all kept in leaf order
-        array[dest[moved]] = array[pos[moved]]
-    return np.where(splittable, start + n_left, (start + end) // 2)
+    best = np.argmin(cost, axis=0)
+    splittable = np.isfinite(cost[best, rows])
+    n_left = np.where(splittable, left_n[best, rows], size // 2)
+    children = np.concatenate([left[:, best, rows], right[:, best + 1, rows]])
+    children[:, ~splittable] = np.nan
+    side = bins <= best[node]
+    if not splittable.all():  # all centroids in one bin: the first half of the range
+        half = np.flatnonzero(~splittable[node])
+        side[half] = half - seg[node[half]] < n_left[node[half]]
+    return n_left, children, node, side
+
+
+def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
+    """Top-down binned SAH, one level at a time. Only the primitives of inner nodes take part
+    in a level: they sit in working arrays, node after node; a child that is a leaf writes its
+    primitives to ``order`` and leaves them."""
+    n = len(lo)
+    capacity = max_nodes(n)
+    node_lo = np.zeros((capacity, 3), np.float32)
+    node_hi = np.zeros((capacity, 3), np.float32)
+    first = np.zeros(capacity, np.int64)
+    count = np.zeros(capacity, np.int64)
+    order = np.arange(n)
+    box = np.concatenate([lo.T, hi.T])  # (6, P) float32, working order
+    if n:
+        node_lo[0], node_hi[0] = box[:3].min(1), box[3:].max(1)
+    if n <= leaf_size:
+        count[0] = n
+        return Bvh(node_lo[:1], node_hi[:1], first[:1], count[:1], order, 0)
+    cen = (lo.T.astype(np.float64) + hi.T) * 0.5
+    work = order.copy()  # the primitive in each working slot
+    ids, size, offset = np.array([0]), np.array([n]), np.array([0])  # offset: into ``order``
+    used, depth = 1, 0
+    while len(ids):
+        m = len(ids)
+        n_left, boxes, node, side = _sah_level(box, cen, size)
+        depth += 1
+        child = used + np.arange(2 * m)  # children of node j: child[2j], child[2j + 1]
+        first[ids] = child[::2]
+        used += 2 * m
+        child_size = np.stack([n_left, size - n_left], 1).ravel()
+        child_offset = np.stack([offset, offset + n_left], 1).ravel()
+        boxes = boxes.reshape(2, 6, m).transpose(2, 0, 1).reshape(2 * m, 6)
+        which = 2 * node + ~side  # each primitive's child, 0 .. 2m
+        unset = np.isnan(boxes[:, 0])
+        if unset.any():  # the halves of nodes without an SAH split: boxes over their ranges
+            sub = box[:, unset[which]]  # those children's primitives, child after child
+            sub_seg = np.cumsum(child_size[unset]) - child_size[unset]
+            boxes[unset, :3] = np.minimum.reduceat(sub[:3], sub_seg, axis=1).T
+            boxes[unset, 3:] = np.maximum.reduceat(sub[3:], sub_seg, axis=1).T
+        node_lo[child], node_hi[child] = boxes[:, :3], boxes[:, 3:]
+        leaf = child_size <= leaf_size
+        first[child[leaf]], count[child[leaf]] = child_offset[leaf], child_size[leaf]
+        # each primitive's rank in its child (a stable partition), then its next slot
+        seg = np.cumsum(size) - size
+        before = np.cumsum(side) - side
+        rank_left = before - before[seg][node]
+        rank = np.where(side, rank_left, np.arange(len(side)) - seg[node] - rank_left)
+        out = leaf[which]
+        order[child_offset[which[out]] + rank[out]] = work[out]
+        inner = ~leaf
+        start = np.cumsum(np.where(inner, child_size, 0)) - np.where(inner, child_size, 0)
+        stay = ~out
+        src = np.empty(int(child_size[inner].sum()), np.int64)
+        src[start[which[stay]] + rank[stay]] = np.flatnonzero(stay)
+        box, cen, work = np.take(box, src, axis=1), np.take(cen, src, axis=1), work[src]
+        ids, size, offset = child[inner], child_size[inner], child_offset[inner]
+    return Bvh(node_lo[:used], node_hi[:used], first[:used], count[:used], order, depth)
 
 
 def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int = 4) -> Bvh:
@@ -153,15 +209,13 @@ def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int =
     if method not in BUILDERS:
         raise ValueError(f"build must be one of {BUILDERS}, got {method!r}")
     lo, hi = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
+    if method == "sah":
+        return _build_sah(lo, hi, leaf_size)
     n = len(lo)
-    centroids = (lo.astype(np.float64) + hi) * 0.5
-    if method == "lbvh":
-        codes = morton_codes(centroids)
-        order = np.argsort(codes, kind="stable")
-        codes = codes[order]
-    else:
-        order = np.arange(n)
-    lo, hi, centroids = lo[order], hi[order], centroids[order]  # in leaf order from here
+    codes = morton_codes((lo.astype(np.float64) + hi) * 0.5)
+    order = np.argsort(codes, kind="stable")
+    codes = codes[order]
+    lo, hi = lo[order], hi[order]  # in leaf order from here
     capacity = max_nodes(n)
     node_lo = np.zeros((capacity, 3), np.float32)
     node_hi = np.zeros((capacity, 3), np.float32)
@@ -175,8 +229,7 @@ def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int =
         inner = ~leaf
         if inner.any():
             s, e = start[inner], end[inner]
-            split = (_lbvh_split(codes, s, e) if method == "lbvh"
-                     else _sah_split(order, lo, hi, centroids, s, e))
+            split = _lbvh_split(codes, s, e)
         # node boxes over their (now partitioned) contiguous ranges
         bounds = np.stack([start, end], 1).ravel()
         bounds = bounds[bounds < n] if n else bounds[:0]
