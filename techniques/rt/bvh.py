@@ -94,27 +94,33 @@ def _lbvh_split(codes: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.nda
 
 def _area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Half the surface area of boxes given as (3, ...) corners (0 for an empty box)."""
-    d = np.maximum(hi - lo, 0)
-    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    d = np.subtract(hi, lo)
+    np.maximum(d, 0, out=d)
+    area, term = d[0] * d[1], d[1] * d[2]
+    area += term
+    area += np.multiply(d[2], d[0], out=term)
+    return area
 
 
 def _sah_level(box, cen, size):
     """Binned SAH over one level's nodes, whose primitives fill ``box`` (6, P) float32
     corners and ``cen`` (3, P) float64 centroids node after node (``size`` each). Returns
-    each node's left count and its children's boxes (6, M) (NaN where the node has no SAH
-    split: all its centroids in one bin), and each primitive's node and side (True: left)."""
+    each node's left count, its children's boxes (12, M): left then right (NaN where the node
+    has no SAH split: all its centroids in one bin), and each primitive's side (True: left)."""
     m, p = len(size), box.shape[1]
     seg = np.cumsum(size) - size
-    node = np.repeat(np.arange(m), size)
     cmin, cmax = np.minimum.reduceat(cen, seg, axis=1), np.maximum.reduceat(cen, seg, axis=1)
     axis = np.argmax(cmax - cmin, axis=0)
     rows = np.arange(m)
     extent, base = (cmax - cmin)[axis, rows], cmin[axis, rows]
     scale = np.where(extent > 0, SAH_BINS / np.where(extent > 0, extent, 1), 0)
-    ca = cen.ravel()[axis[node] * p + np.arange(p)]
-    bins = np.clip(((ca - base[node]) * scale[node]).astype(np.int64), 0, SAH_BINS - 1)
+    # per-node values repeated over the node's primitives (cheaper than gathers by node)
+    ca = np.take(cen.ravel(), np.repeat(axis * p, size) + np.arange(p))
+    ca -= np.repeat(base, size)
+    ca *= np.repeat(scale, size)
+    bins = np.minimum(ca.astype(np.int64), SAH_BINS - 1)  # ca >= 0: its node's minimum
     # each bin's count and box, bin-major: (6, bin, node); no sort, one ufunc.at per corner
-    key = bins * m + node
+    key = bins * m + np.repeat(rows, size)
     bin_count = np.bincount(key, minlength=SAH_BINS * m).reshape(SAH_BINS, m)
     bin_box = np.empty((6, SAH_BINS * m), np.float32)
     bin_box[:3], bin_box[3:] = np.inf, -np.inf
@@ -132,18 +138,19 @@ def _sah_level(box, cen, size):
         np.maximum(right[3:, c + 1], bin_box[3:, c], out=right[3:, c])
     left_n = np.cumsum(bin_count, axis=0)[:-1]
     right_n = size - left_n
-    cost = left_n * _area(left[:3, :-1], left[3:, :-1]) + right_n * _area(right[:3, 1:], right[3:, 1:])
+    cost = left_n * _area(left[:3, :-1], left[3:, :-1])
+    cost += right_n * _area(right[:3, 1:], right[3:, 1:])
     cost = np.where((left_n > 0) & (right_n > 0), cost, np.inf)
     best = np.argmin(cost, axis=0)
     splittable = np.isfinite(cost[best, rows])
     n_left = np.where(splittable, left_n[best, rows], size // 2)
     children = np.concatenate([left[:, best, rows], right[:, best + 1, rows]])
     children[:, ~splittable] = np.nan
-    side = bins <= best[node]
+    side = bins <= np.repeat(best, size)
     if not splittable.all():  # all centroids in one bin: the first half of the range
-        half = np.flatnonzero(~splittable[node])
-        side[half] = half - seg[node[half]] < n_left[node[half]]
-    return n_left, children, node, side
+        local = np.arange(p) - np.repeat(seg, size)
+        side = np.where(np.repeat(splittable, size), side, local < np.repeat(n_left, size))
+    return n_left, children, side
 
 
 def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
@@ -157,9 +164,10 @@ def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
     first = np.zeros(capacity, np.int64)
     count = np.zeros(capacity, np.int64)
     order = np.arange(n)
-    box = np.concatenate([lo.T, hi.T])  # (6, P) float32, working order
+    box = np.empty((6, n), np.float32)  # working order; a fresh float32 (NumPy 2.4's ufunc.at
+    box[:3], box[3:] = lo.T, hi.T  # is 20x slower on an equal dtype that is not the builtin one)
     if n:
-        node_lo[0], node_hi[0] = box[:3].min(1), box[3:].max(1)
+        node_lo[0], node_hi[0] = [[row.min() for row in box[:3]], [row.max() for row in box[3:]]]
     if n <= leaf_size:
         count[0] = n
         return Bvh(node_lo[:1], node_hi[:1], first[:1], count[:1], order, 0)
@@ -169,7 +177,7 @@ def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
     used, depth = 1, 0
     while len(ids):
         m = len(ids)
-        n_left, boxes, node, side = _sah_level(box, cen, size)
+        n_left, boxes, side = _sah_level(box, cen, size)
         depth += 1
         child = used + np.arange(2 * m)  # children of node j: child[2j], child[2j + 1]
         first[ids] = child[::2]
@@ -177,7 +185,8 @@ def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
         child_size = np.stack([n_left, size - n_left], 1).ravel()
         child_offset = np.stack([offset, offset + n_left], 1).ravel()
         boxes = boxes.reshape(2, 6, m).transpose(2, 0, 1).reshape(2 * m, 6)
-        which = 2 * node + ~side  # each primitive's child, 0 .. 2m
+        seg = np.cumsum(size) - size
+        which = np.repeat(2 * np.arange(m), size) + ~side  # each primitive's child, 0 .. 2m
         unset = np.isnan(boxes[:, 0])
         if unset.any():  # the halves of nodes without an SAH split: boxes over their ranges
             sub = box[:, unset[which]]  # those children's primitives, child after child
@@ -187,18 +196,24 @@ def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
         node_lo[child], node_hi[child] = boxes[:, :3], boxes[:, 3:]
         leaf = child_size <= leaf_size
         first[child[leaf]], count[child[leaf]] = child_offset[leaf], child_size[leaf]
-        # each primitive's rank in its child (a stable partition), then its next slot
-        seg = np.cumsum(size) - size
-        before = np.cumsum(side) - side
-        rank_left = before - before[seg][node]
-        rank = np.where(side, rank_left, np.arange(len(side)) - seg[node] - rank_left)
-        out = leaf[which]
-        order[child_offset[which[out]] + rank[out]] = work[out]
+        # a stable partition: slots for the inner children's primitives, child after child,
+        # then the leaves'; a primitive's slot is its child's first slot plus its rank there
         inner = ~leaf
-        start = np.cumsum(np.where(inner, child_size, 0)) - np.where(inner, child_size, 0)
-        stay = ~out
-        src = np.empty(int(child_size[inner].sum()), np.int64)
-        src[start[which[stay]] + rank[stay]] = np.flatnonzero(stay)
+        stay = int(child_size[inner].sum())
+        target = np.empty(2 * m, np.int64)
+        for kept, at in ((inner, 0), (leaf, stay)):
+            target[kept] = at + np.cumsum(child_size[kept]) - child_size[kept]
+        lefts = np.cumsum(side)  # left primitives up to and including each one
+        left_before = lefts[seg] - side[seg]  # before each node
+        target[0::2] -= left_before
+        target[1::2] -= seg - left_before
+        rank = np.where(side, lefts - 1, np.arange(len(side)) - lefts)
+        src = np.empty(len(side), np.int64)
+        src[target[which] + rank] = np.arange(len(side))
+        gone = child_size[leaf]
+        order[np.repeat(child_offset[leaf] - np.cumsum(gone) + gone, gone) + np.arange(gone.sum())] = \
+            work[src[stay:]]
+        src = src[:stay]
         box, cen, work = np.take(box, src, axis=1), np.take(cen, src, axis=1), work[src]
         ids, size, offset = child[inner], child_size[inner], child_offset[inner]
     return Bvh(node_lo[:used], node_hi[:used], first[:used], count[:used], order, depth)
