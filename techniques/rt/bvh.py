@@ -25,6 +25,7 @@ import numpy as np
 
 BUILDERS = ("lbvh", "sah")
 SAH_BINS = 16
+SAH_CHUNK = 8192  # nodes binned together: their bins' arrays (6 x 16 x 4 B each) stay in cache
 NODE_BYTES = 32  # two RGBA32F texels: (lo, first child or first primitive), (hi, count)
 
 
@@ -102,6 +103,20 @@ def _area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return area
 
 
+def _accumulate(ufunc, a: np.ndarray) -> np.ndarray:
+    """``ufunc.accumulate(a, axis=1)`` over (K, bins, M) arrays: one call while M is small, a
+    loop over the bins once it is not (NumPy's accumulate along a middle axis costs 20x more
+    per element than whole-slice operations at M = 60,000; the loop's 15 calls cost more
+    below M = 128)."""
+    if a.shape[2] < 128:
+        return ufunc.accumulate(a, axis=1)
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 0]
+    for b in range(1, a.shape[1]):
+        ufunc(out[:, b - 1], a[:, b], out=out[:, b])
+    return out
+
+
 def _sah_level(box, cen, size):
     """Binned SAH over one level's nodes, whose primitives fill ``box`` (6, P) float32
     corners and ``cen`` (3, P) float64 centroids node after node (``size`` each). Returns
@@ -127,16 +142,11 @@ def _sah_level(box, cen, size):
     for k in range(6):
         (np.minimum if k < 3 else np.maximum).at(bin_box[k], key, box[k])
     bin_box = bin_box.reshape(6, SAH_BINS, m)
-    # boxes of bins 0..b (left) and b..15 (right), accumulated bin by bin
-    left, right = np.empty_like(bin_box), np.empty_like(bin_box)
-    left[:, 0], right[:, -1] = bin_box[:, 0], bin_box[:, -1]
-    for b in range(1, SAH_BINS):
-        np.minimum(left[:3, b - 1], bin_box[:3, b], out=left[:3, b])
-        np.maximum(left[3:, b - 1], bin_box[3:, b], out=left[3:, b])
-        c = SAH_BINS - 1 - b
-        np.minimum(right[:3, c + 1], bin_box[:3, c], out=right[:3, c])
-        np.maximum(right[3:, c + 1], bin_box[3:, c], out=right[3:, c])
-    left_n = np.cumsum(bin_count, axis=0)[:-1]
+    # boxes of bins 0..b (left) and b..15 (right), and the primitives in bins 0..b
+    left = np.concatenate([_accumulate(np.minimum, bin_box[:3]), _accumulate(np.maximum, bin_box[3:])])
+    right = np.concatenate([_accumulate(np.minimum, bin_box[:3, ::-1]),
+                            _accumulate(np.maximum, bin_box[3:, ::-1])])[:, ::-1]
+    left_n = _accumulate(np.add, bin_count[None, :-1])[0]
     right_n = size - left_n
     cost = left_n * _area(left[:3, :-1], left[3:, :-1])
     cost += right_n * _area(right[:3, 1:], right[3:, 1:])
@@ -153,39 +163,56 @@ def _sah_level(box, cen, size):
     return n_left, children, side
 
 
-def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
-    """Top-down binned SAH, one level at a time. Only the primitives of inner nodes take part
-    in a level: they sit in working arrays, node after node; a child that is a leaf writes its
-    primitives to ``order`` and leaves them."""
-    n = len(lo)
-    capacity = max_nodes(n)
+def _build_sah(parts: list, leaf_size: int) -> list[Bvh]:
+    """Top-down binned SAH over a forest, one level of every tree at a time (a scene's parts:
+    a level of many small trees costs what a level of one large tree does). Only the
+    primitives of inner nodes take part in a level: they sit in working arrays, node after
+    node; a child that is a leaf writes its primitives to ``order`` and leaves them. Nodes
+    are numbered in the order they are made, then renumbered tree by tree."""
+    sizes = np.array([len(lo) for lo, _ in parts], np.int64)
+    trees, n = len(parts), int(sizes.sum())
+    base = np.cumsum(sizes) - sizes  # each tree's first primitive
+    capacity = sum(max_nodes(int(k)) for k in sizes)
     node_lo = np.zeros((capacity, 3), np.float32)
     node_hi = np.zeros((capacity, 3), np.float32)
     first = np.zeros(capacity, np.int64)
     count = np.zeros(capacity, np.int64)
+    tree = np.zeros(capacity, np.int64)  # each node's tree
+    level = np.zeros(capacity, np.int64)  # edges from its root
+    box = np.empty((6, n), np.float32)  # a fresh float32 (NumPy 2.4's ufunc.at is 20x slower
+    for k, (lo, hi) in enumerate(parts):  # on an equal dtype that is not the builtin one)
+        box[:3, base[k]:base[k] + sizes[k]], box[3:, base[k]:base[k] + sizes[k]] = lo.T, hi.T
+    tree[:trees] = np.arange(trees)
+    filled = sizes > 0
+    if filled.any():
+        for row in range(6):
+            ufunc = np.minimum if row < 3 else np.maximum
+            (node_lo if row < 3 else node_hi)[:trees][filled, row % 3] = \
+                ufunc.reduceat(box[row], base[filled])
+    root_leaf = sizes <= leaf_size
+    first[:trees], count[:trees] = base, np.where(root_leaf, sizes, 0)
     order = np.arange(n)
-    box = np.empty((6, n), np.float32)  # working order; a fresh float32 (NumPy 2.4's ufunc.at
-    box[:3], box[3:] = lo.T, hi.T  # is 20x slower on an equal dtype that is not the builtin one)
-    if n:
-        node_lo[0], node_hi[0] = [[row.min() for row in box[:3]], [row.max() for row in box[3:]]]
-    if n <= leaf_size:
-        count[0] = n
-        return Bvh(node_lo[:1], node_hi[:1], first[:1], count[:1], order, 0)
-    cen = (lo.T.astype(np.float64) + hi.T) * 0.5
-    work = order.copy()  # the primitive in each working slot
-    ids, size, offset = np.array([0]), np.array([n]), np.array([0])  # offset: into ``order``
-    used, depth = 1, 0
+    active = np.repeat(~root_leaf, sizes)
+    box, work = box[:, active], order[active]  # the primitive in each working slot
+    cen = (box[:3].astype(np.float64) + box[3:]) * 0.5
+    ids = np.flatnonzero(~root_leaf)
+    size, offset = sizes[ids], base[ids]  # offset: into ``order``
+    used = trees
     while len(ids):
         m = len(ids)
-        n_left, boxes, side = _sah_level(box, cen, size)
-        depth += 1
+        seg = np.cumsum(size) - size
+        bounds = np.append(seg, len(work))
+        level_parts = [_sah_level(box[:, bounds[j]:bounds[j + k]], cen[:, bounds[j]:bounds[j + k]],
+                                  size[j:j + k])
+                       for j in range(0, m, SAH_CHUNK) for k in [min(SAH_CHUNK, m - j)]]
+        n_left, boxes, side = (np.concatenate(r, axis=-1) for r in zip(*level_parts))
         child = used + np.arange(2 * m)  # children of node j: child[2j], child[2j + 1]
         first[ids] = child[::2]
+        tree[child], level[child] = np.repeat(tree[ids], 2), np.repeat(level[ids] + 1, 2)
         used += 2 * m
         child_size = np.stack([n_left, size - n_left], 1).ravel()
         child_offset = np.stack([offset, offset + n_left], 1).ravel()
         boxes = boxes.reshape(2, 6, m).transpose(2, 0, 1).reshape(2 * m, 6)
-        seg = np.cumsum(size) - size
         which = np.repeat(2 * np.arange(m), size) + ~side  # each primitive's child, 0 .. 2m
         unset = np.isnan(boxes[:, 0])
         if unset.any():  # the halves of nodes without an SAH split: boxes over their ranges
@@ -216,7 +243,30 @@ def _build_sah(lo: np.ndarray, hi: np.ndarray, leaf_size: int) -> Bvh:
         src = src[:stay]
         box, cen, work = np.take(box, src, axis=1), np.take(cen, src, axis=1), work[src]
         ids, size, offset = child[inner], child_size[inner], child_offset[inner]
-    return Bvh(node_lo[:used], node_hi[:used], first[:used], count[:used], order, depth)
+    # tree by tree: nodes in the order made (children stay adjacent), indices made local
+    by_tree = np.argsort(tree[:used], kind="stable")
+    nodes = np.bincount(tree[:used], minlength=trees)
+    starts = np.cumsum(nodes) - nodes
+    local = np.empty(used, np.int64)
+    local[by_tree] = np.arange(used) - np.repeat(starts, nodes)
+    inner = count[:used] == 0
+    inner[:trees] &= ~root_leaf
+    first = np.where(inner, local[np.where(inner, first[:used], 0)], first[:used] - base[tree[:used]])
+    depth = np.maximum.reduceat(level[:used][by_tree], starts)
+    node_lo, node_hi = node_lo[:used][by_tree], node_hi[:used][by_tree]
+    first, count = first[by_tree], count[:used][by_tree]
+    return [Bvh(node_lo[a:a + k], node_hi[a:a + k], first[a:a + k], count[a:a + k],
+                order[b:b + t] - b, int(d))
+            for a, k, b, t, d in zip(starts, nodes, base, sizes, depth)]
+
+
+def build_all(boxes: list, method: str = "lbvh", leaf_size: int = 4) -> list[Bvh]:
+    """One BVH per ``(lo, hi)`` of ``boxes`` (a scene's parts), each as :func:`build` makes
+    it; ``sah`` builds them as one forest, level by level."""
+    if method == "sah":
+        return _build_sah([(np.asarray(lo, np.float32), np.asarray(hi, np.float32))
+                           for lo, hi in boxes], leaf_size)
+    return [build(lo, hi, method, leaf_size) for lo, hi in boxes]
 
 
 def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int = 4) -> Bvh:
@@ -225,7 +275,7 @@ def build(lo: np.ndarray, hi: np.ndarray, method: str = "lbvh", leaf_size: int =
         raise ValueError(f"build must be one of {BUILDERS}, got {method!r}")
     lo, hi = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
     if method == "sah":
-        return _build_sah(lo, hi, leaf_size)
+        return _build_sah([(lo, hi)], leaf_size)[0]
     n = len(lo)
     codes = morton_codes((lo.astype(np.float64) + hi) * 0.5)
     order = np.argsort(codes, kind="stable")

@@ -49,10 +49,9 @@ class TwoLevelBvh:
         self.used = [i for i, part in enumerate(parts) if len(part.faces)]
         nodes, triangles, roots, depths = [], [], [], []
         node_offset = triangle_offset = 0
-        for i in self.used:  # one build per part, each vectorised over its triangles
-            part = parts[i]
-            corners = part.vertices[part.faces]
-            tree = bvh.build(corners.min(1), corners.max(1), build, leaf_size)
+        part_corners = [parts[i].vertices[parts[i].faces] for i in self.used]
+        trees = bvh.build_all([(c.min(1), c.max(1)) for c in part_corners], build, leaf_size)
+        for tree, corners in zip(trees, part_corners):  # one tree per part
             nodes.append(tree.texels(node_offset, triangle_offset))
             padded = np.zeros((len(tree.order), 3, 4), np.float32)
             padded[..., :3] = corners[tree.order]
