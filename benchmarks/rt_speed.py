@@ -46,8 +46,8 @@ def build(args) -> None:
         best, best_cpu, nodes = float("inf"), float("inf"), 0
         for _ in range(args.rounds):
             start, cpu = time.perf_counter(), time.process_time()
-            trees = bvh.build_all([(c.min(1), c.max(1)) for c in (p.vertices[p.faces] for p in parts)],
-                                  method, args.leaf_size)
+            trees = bvh.build_all([bvh.triangle_boxes(p.vertices[p.faces]) for p in parts], method,
+                                  args.leaf_size)
             best = min(best, time.perf_counter() - start)
             best_cpu = min(best_cpu, time.process_time() - cpu)
             nodes = sum(t.nodes for t in trees)

