@@ -10,8 +10,15 @@ per triangle or per node; a loop per level, about log2 of the count). Two split 
   level over the sorted codes), in the middle of a run of equal codes.
 - ``sah``, binned surface-area heuristic (Wald 2007): 16 bins along the longest axis of the
   node's centroid bounds; the split between bins that minimises n_left x area_left +
-  n_right x area_right; primitives partitioned stably in place; a node whose centroids all
-  fall in one bin splits at the middle of its range.
+  n_right x area_right; primitives partitioned stably; a node whose centroids all fall in
+  one bin splits at the middle of its range. The bins' boxes come from one ``ufunc.at`` per
+  box coordinate (no sort), the children's boxes from the bins, a level's nodes are binned
+  8192 at a time (their bins stay in cache), and only inner nodes' primitives take part in a
+  level. ``build_all`` builds a scene's parts as one forest, a level of every part at once.
+  At 10^6 triangles (``benchmarks/rt_speed.py build``, 2 shared cores, load average about
+  2): 1.2-1.3 s on tessellation (2 parts) and 1.4-1.6 s on architecture (168 parts), against
+  5.0-6.1 s and 4.6-4.7 s before (per part, a stable argsort and 2-D gathers per level); the
+  same trees bit for bit.
 
 A node holding ``leaf_size`` primitives or fewer is a leaf. Children of a node are adjacent
 (``first``, ``first + 1``), so a node stores one index. The result is a :class:`Bvh`.
