@@ -15,10 +15,10 @@ per triangle or per node; a loop per level, about log2 of the count). Two split 
   box coordinate (no sort), the children's boxes from the bins, a level's nodes are binned
   8192 at a time (their bins stay in cache), and only inner nodes' primitives take part in a
   level. ``build_all`` builds a scene's parts as one forest, a level of every part at once.
-  At 10^6 triangles (``benchmarks/rt_speed.py build``, 2 shared cores, load average about
-  2): 1.2-1.3 s on tessellation (2 parts) and 1.4-1.6 s on architecture (168 parts), against
-  5.0-6.1 s and 4.6-4.7 s before (per part, a stable argsort and 2-D gathers per level); the
-  same trees bit for bit.
+  At 10^6 triangles (``benchmarks/rt_speed.py build``, triangles' boxes included, 2 shared
+  cores at load average 2.4-2.7): 1.0-1.5 s on tessellation (2 parts) and 1.3-1.8 s on
+  architecture (168 parts), against 4.7-5.6 s and 4.6-4.9 s before (a build per part, with a
+  stable argsort and 2-D gathers per level); the same trees bit for bit.
 
 A node holding ``leaf_size`` primitives or fewer is a leaf. Children of a node are adjacent
 (``first``, ``first + 1``), so a node stores one index. The result is a :class:`Bvh`.
