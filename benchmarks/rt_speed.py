@@ -5,7 +5,8 @@
         [--runs 'rt;rt:{"backend": "embree"};sv;sm'] [--size 512] [--frames 3]
 
 ``build``: each builder's bottom levels of the scene (every part, as ``prepare`` builds them),
-wall seconds (best of ``--rounds``) and bytes (nodes and triangles as uploaded). ``frames``:
+wall and CPU seconds of this process (each the best of ``--rounds``: CPU time is the steadier
+figure on shared cores) and bytes (nodes and triangles as uploaded). ``frames``:
 each run through ``harness.run.evaluate`` (cost: dynamic, one warm-up frame), its median
 ``time_ms``, the timed passes, ``prepare_ms`` and the machine's load; a run is
 ``technique[:json params]``. A scene is a name of scenes.yaml, a family one at any size as an
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 
@@ -41,18 +43,20 @@ def build(args) -> None:
           f"{args.leaf_size}; bound checked against budget_mib: "
           f"{levels.bound_bytes(triangles) / 2**20:.1f} MiB")
     for method in bvh.BUILDERS:
-        best, records = float("inf"), 0
+        best, best_cpu, nodes, records = float("inf"), float("inf"), 0, 0
         for _ in range(args.rounds):
-            start = time.perf_counter()
-            trees = [bvh.build(c.min(1), c.max(1), method, args.leaf_size)
-                     for c in (p.vertices[p.faces] for p in parts)]
+            start, cpu = time.perf_counter(), time.process_time()
+            trees = bvh.build_all([bvh.triangle_boxes(p.vertices[p.faces]) for p in parts], method,
+                                  args.leaf_size)
             best = min(best, time.perf_counter() - start)
+            best_cpu = min(best_cpu, time.process_time() - cpu)
             nodes = sum(t.nodes for t in trees)
             records = sum(t.record_count for t in trees)
         nbytes = records * bvh.RECORD_BYTES + triangles * levels.TRIANGLE_BYTES
         depth = max(t.depth for t in trees)
-        print(f"  {method}: {best:.3f} s (best of {args.rounds}), {nodes:,} nodes, depth "
-              f"{depth}, {nbytes / 2**20:.1f} MiB")
+        print(f"  {method}: {best:.3f} s, CPU {best_cpu:.3f} s (best of {args.rounds}), {nodes:,} "
+              f"nodes, depth {depth}, {nbytes / 2**20:.1f} MiB, load average "
+              f"{os.getloadavg()[0]:.2f}")
 
 
 def frames(args) -> None:

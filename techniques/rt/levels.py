@@ -56,10 +56,9 @@ class TwoLevelBvh:
         top_slots = max(self.top_records, 1)
         records, triangles, roots, depths = [np.zeros((4 * top_slots, 4), np.float32)], [], [], []
         record_offset, triangle_offset = top_slots, 0
-        for i in self.used:  # one build per part, each vectorised over its triangles
-            part = parts[i]
-            corners = part.vertices[part.faces]
-            tree = bvh.build(corners.min(1), corners.max(1), build, leaf_size)
+        part_corners = [parts[i].vertices[parts[i].faces] for i in self.used]
+        trees = bvh.build_all([bvh.triangle_boxes(c) for c in part_corners], build, leaf_size)
+        for tree, corners in zip(trees, part_corners):  # one tree per part
             records.append(tree.texels(record_offset, triangle_offset))
             padded = np.zeros((len(tree.order), 3, 4), np.float32)
             padded[..., :3] = corners[tree.order]

@@ -64,11 +64,15 @@ def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_co
     frame, still = Frame(moving), Frame(moving.at_frame(2))
     moved, fresh = cls(params), cls(params)
     builds, active = [], []
-    real_build, real_measure = levels.bvh.build, frame.measure
+    real_build, real_build_all, real_measure = levels.bvh.build, levels.bvh.build_all, frame.measure
 
     def spy_build(lo, hi, method="lbvh", leaf_size=4):
         builds.append((method, leaf_size, tuple(active)))
         return real_build(lo, hi, method, leaf_size)
+
+    def spy_build_all(boxes, method="lbvh", leaf_size=4):
+        builds.append((method, leaf_size, tuple(active), len(boxes)))
+        return real_build_all(boxes, method, leaf_size)
 
     @contextmanager
     def spy_measure(name):
@@ -81,9 +85,10 @@ def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_co
 
     try:
         monkeypatch.setattr(levels.bvh, "build", spy_build)
+        monkeypatch.setattr(levels.bvh, "build_all", spy_build_all)
         monkeypatch.setattr(frame, "measure", spy_measure)
         moved.prepare(frame)
-        assert [b[0] for b in builds] == ["sah"] * 3  # one bottom level per part
+        assert builds == [("sah", 4, (), 3)]  # the three parts' bottom levels, one forest
         builds.clear()
         first = render(moved, frame)
         for t in (1, 2):
