@@ -124,8 +124,11 @@ class SampleHierarchy:
         # the timed programs, and the same counting their work for the untimed repeat
         self.setup_programs = {c: program("ptsv_setup.comp.glsl", **({"COUNT": 1} if c else {}))
                                for c in (False, True)}
-        self.traverse_programs = {c: program("ptsv_traverse.comp.glsl",
-                                             **({"COUNT": 1} if c else {})) for c in (False, True)}
+        # per (counting, level 1): level 1 tests samples, the levels above nodes
+        self.traverse_programs = {(c, leaf): program("ptsv_traverse.comp.glsl",
+                                                     **({"COUNT": 1} if c else {}),
+                                                     **({"LEAF": 1} if leaf else {}))
+                                  for c in (False, True) for leaf in (False, True)}
         self.boxes = _storage(self.nodes * BOX_BYTES)
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
@@ -243,9 +246,10 @@ class SampleHierarchy:
              top_first=self.node_first[self.levels], **shared)
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
-        traverse = self.traverse_programs[count]
-        traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
-        _set(traverse, **shared)
+        for leaf in (False, True):
+            traverse = self.traverse_programs[count, leaf]
+            traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
+            _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):
             _set(self.dispatch_program.use(), level=level, items_per_group=self.items_per_group,
@@ -253,8 +257,9 @@ class SampleHierarchy:
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
             cw, ch = self.sizes[level - 1]
-            _set(traverse.use(), level=level, node_size=self.sizes[level],
-                 child_size=(cw, ch), child_first=self.node_first[level - 1] if level > 1 else 0)
+            _set(self.traverse_programs[count, level == 1].use(), level=level,
+                 node_size=self.sizes[level], child_size=(cw, ch),
+                 child_first=self.node_first[level - 1] if level > 1 else 0)
             GL.glDispatchComputeIndirect(0)
             _barrier()
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, 0)

@@ -6,7 +6,8 @@
 // marked (by another volume) is skipped: marks only ever go from lit to shadowed. ITEMS_PER_GROUP
 // items share a work group; nothing depends on the subgroup's size. With clusters (`slices` >
 // 1) a queued node is one depth slice of its tile: its children are that slice's nodes, or at
-// level 1 the tile's samples in that slice.
+// level 1 the tile's samples in that slice. Compiled twice, for level 1 (LEAF: sample tests)
+// and for the levels above (node tests): llvmpipe runs both sides of a branch, even a uniform one.
 #include "ptsv_volume.glsl"
 #include "ptsv_samples.glsl"
 
@@ -29,14 +30,13 @@ void main() {
     if (any(greaterThanEqual(child, child_size))) return;
     uint index = child.y * child_size.x + child.x;
     vec4 volume[4] = volume_planes(queued.x);
-    if (level == 1u) {
-        vec4 p = sample_position(child);
-        if (p.w < 0.5 || marks[index] != 0u) return;  // already shadowed: nothing to learn
-        if (slices > 1u && sample_slices[index] != slice) return;  // another cluster's
-        TALLY(COUNT_SAMPLE_TESTS);
-        if (inside_volume(volume, p.xyz)) marks[index] = 1u;
-        return;
-    }
+#ifdef LEAF
+    vec4 p = sample_position(child);
+    if (p.w < 0.5 || marks[index] != 0u) return;  // already shadowed: nothing to learn
+    if (slices > 1u && sample_slices[index] != slice) return;  // another cluster's
+    TALLY(COUNT_SAMPLE_TESTS);
+    if (inside_volume(volume, p.xyz)) marks[index] = 1u;
+#else
     index += slice * child_size.x * child_size.y;
     if (marks[sample_count + child_first + index] != 0u) return;  // shadowed whole already
     vec3 lo, hi;
@@ -50,4 +50,5 @@ void main() {
     } else if (test == 0) {
         push(level - 1u, queued.x, index);
     }
+#endif
 }
