@@ -112,9 +112,8 @@ class SampleHierarchy:
         # tiles: the top level's one node; clusters: one more node over the top level's slices
         self.root = self.node_first[self.levels] if slices == 1 else self.node_first[-1]
         self.nodes = self.root + 1
-        self.items_per_group = max(1, 64 // (tile * tile))
-        defines = {"TILE": tile, "ITEMS_PER_GROUP": self.items_per_group,
-                   "GROUP_SIZE": tile * tile * self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
+        self.items_per_group = 64  # the traversal's: one invocation per queued item
+        defines = {"TILE": tile, "GROUP_SIZE": self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
 
         def program(name, **more):
             return ComputeProgram(HERE / name, {**defines, **more})
