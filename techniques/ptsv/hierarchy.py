@@ -87,7 +87,17 @@ def _set(program, **uniforms) -> None:
 
 
 def _barrier() -> None:
-    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT)
+    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT
+                       | GL.GL_TEXTURE_FETCH_BARRIER_BIT)
+
+
+def _texels(texture: int, buffer: int, texels: int) -> None:
+    """Make ``texture`` the RGBA32F buffer texture over storage ``buffer`` (``texels`` vec4)."""
+    if texels > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
+        raise ValueError(f"ptsv: {texels} texels, over the driver's buffer-texture size")
+    GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
+    GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, GL.GL_RGBA32F, buffer)
+    GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
 
 
 def _rows(groups: int) -> tuple[int, int]:
@@ -129,6 +139,8 @@ class SampleHierarchy:
                                                      **({"LEAF": 1} if leaf else {}))
                                   for c in (False, True) for leaf in (False, True)}
         self.boxes = _storage(self.nodes * BOX_BYTES)
+        self.box_texels, self.plane_texels = GL.glGenTextures(2)
+        _texels(self.box_texels, self.boxes, 2 * self.nodes)
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
         self.dispatch = _storage(12)
@@ -163,8 +175,14 @@ class SampleHierarchy:
                 GL.glDeleteBuffers(1, [self.planes])
             self.volume_capacity = volume_capacity
             self.planes = _storage(volume_capacity * PLANES_BYTES)
+            _texels(self.plane_texels, self.planes, 4 * volume_capacity)
 
     def _bind(self) -> None:
+        GL.glActiveTexture(GL.GL_TEXTURE1)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.box_texels)
+        GL.glActiveTexture(GL.GL_TEXTURE2)
+        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.plane_texels)
+        GL.glActiveTexture(GL.GL_TEXTURE0)
         for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
                                 (5, self.queues), (6, self.counters), (9, self.sample_slices)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
@@ -240,6 +258,7 @@ class SampleHierarchy:
                       volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
+        setup.set(box_texels=1)
         _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
              triangle_end=end, root=self.root, root_level=self.levels,
              top_first=self.node_first[self.levels], **shared)
@@ -247,7 +266,8 @@ class SampleHierarchy:
         _barrier()
         for leaf in (False, True):
             traverse = self.traverse_programs[count, leaf]
-            traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
+            traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
+                               box_texels=1, plane_texels=2)
             _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):
@@ -280,6 +300,7 @@ class SampleHierarchy:
         return out
 
     def release(self) -> None:
+        GL.glDeleteTextures(2, [self.box_texels, self.plane_texels])
         GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
                                self.queues, self.planes, self.closed_side, self.sample_slices])
         for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),

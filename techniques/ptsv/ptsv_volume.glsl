@@ -8,6 +8,10 @@
 // planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
 layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // 4 per queued triangle
 layout(std430, binding = 3) buffer Boxes { vec4 boxes[]; };  // per node: min, max (xyz)
+// The same volumes and boxes as buffer textures (RGBA32F), through which the traversal reads
+// them: llvmpipe loads a storage buffer's vector lane by lane, a texel in one fetch.
+uniform samplerBuffer plane_texels;
+uniform samplerBuffer box_texels;
 layout(std430, binding = 4) buffer Marks { uint marks[]; };  // samples, then nodes per level
 layout(std430, binding = 5) buffer Queues { uvec2 items[]; };  // (volume, node), 2 regions
 // COUNT_* entries, then per level the items queued for it (each level's queue region holds at
@@ -71,14 +75,15 @@ bool inside_volume(vec4 volume[4], vec3 p) {
 }
 
 vec4[4] volume_planes(uint volume) {
-    uint base = 4u * volume;
-    return vec4[4](planes[base], planes[base + 1u], planes[base + 2u], planes[base + 3u]);
+    int base = 4 * int(volume);
+    return vec4[4](texelFetch(plane_texels, base), texelFetch(plane_texels, base + 1),
+                   texelFetch(plane_texels, base + 2), texelFetch(plane_texels, base + 3));
 }
 
 // A node's box; empty (lo > hi) where none of its samples is covered.
 void node_box(uint node, out vec3 lo, out vec3 hi) {
-    lo = boxes[2u * node].xyz;
-    hi = boxes[2u * node + 1u].xyz;
+    lo = texelFetch(box_texels, 2 * int(node)).xyz;
+    hi = texelFetch(box_texels, 2 * int(node) + 1).xyz;
 }
 
 void mark_node(uint node) {
