@@ -91,12 +91,21 @@ def _barrier() -> None:
                        | GL.GL_TEXTURE_FETCH_BARRIER_BIT)
 
 
-def _texels(texture: int, buffer: int, texels: int) -> None:
-    """Make ``texture`` the RGBA32F buffer texture over storage ``buffer`` (``texels`` vec4)."""
-    if texels > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
-        raise ValueError(f"ptsv: {texels} texels, over the driver's buffer-texture size")
+# The buffer textures over the storage buffers through which the traversal reads them (llvmpipe
+# loads a storage buffer's vector lane by lane, a texel in one fetch): sampler uniform ->
+# (texture unit, texel format, bytes a texel).
+TEXELS = {"box_texels": (1, GL.GL_RGBA32F, 16), "plane_texels": (2, GL.GL_RGBA32F, 16),
+          "item_texels": (3, GL.GL_RG32UI, 8), "mark_texels": (4, GL.GL_R32UI, 4),
+          "slice_texels": (5, GL.GL_R32UI, 4)}
+
+
+def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
+    """Make ``texture`` the buffer texture ``name`` (TEXELS) over storage ``buffer``."""
+    _, texel_format, texel_bytes = TEXELS[name]
+    if max(nbytes, 16) // texel_bytes > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
+        raise ValueError(f"ptsv: {nbytes} bytes, over the driver's buffer-texture size")
     GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
-    GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, GL.GL_RGBA32F, buffer)
+    GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, buffer)
     GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
 
 
@@ -139,12 +148,16 @@ class SampleHierarchy:
                                                      **({"LEAF": 1} if leaf else {}))
                                   for c in (False, True) for leaf in (False, True)}
         self.boxes = _storage(self.nodes * BOX_BYTES)
-        self.box_texels, self.plane_texels = GL.glGenTextures(2)
-        _texels(self.box_texels, self.boxes, 2 * self.nodes)
+        self.textures = dict(zip(TEXELS, GL.glGenTextures(len(TEXELS))))
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
         self.dispatch = _storage(12)
         self.sample_slices = _storage(self.samples * 4 if slices > 1 else 0)
+        for name, buffer, nbytes in (("box_texels", self.boxes, self.nodes * BOX_BYTES),
+                                     ("mark_texels", self.marks, (self.samples + self.nodes) * 4),
+                                     ("slice_texels", self.sample_slices,
+                                      self.samples * 4 if slices > 1 else 0)):
+            _texels(self.textures[name], name, buffer, nbytes)
         self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
         GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
@@ -170,18 +183,20 @@ class SampleHierarchy:
                 GL.glDeleteBuffers(1, [self.queues])
             self.capacity = capacity
             self.queues = _storage(2 * capacity * ITEM_BYTES)
+            _texels(self.textures["item_texels"], "item_texels", self.queues,
+                    2 * capacity * ITEM_BYTES)
         if volume_capacity > self.volume_capacity:
             if self.planes:
                 GL.glDeleteBuffers(1, [self.planes])
             self.volume_capacity = volume_capacity
             self.planes = _storage(volume_capacity * PLANES_BYTES)
-            _texels(self.plane_texels, self.planes, 4 * volume_capacity)
+            _texels(self.textures["plane_texels"], "plane_texels", self.planes,
+                    volume_capacity * PLANES_BYTES)
 
     def _bind(self) -> None:
-        GL.glActiveTexture(GL.GL_TEXTURE1)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.box_texels)
-        GL.glActiveTexture(GL.GL_TEXTURE2)
-        GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.plane_texels)
+        for name, texture in self.textures.items():
+            GL.glActiveTexture(GL.GL_TEXTURE0 + TEXELS[name][0])
+            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
         GL.glActiveTexture(GL.GL_TEXTURE0)
         for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
                                 (5, self.queues), (6, self.counters), (9, self.sample_slices)):
@@ -258,7 +273,7 @@ class SampleHierarchy:
                       volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
-        setup.set(box_texels=1)
+        setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
         _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
              triangle_end=end, root=self.root, root_level=self.levels,
              top_first=self.node_first[self.levels], **shared)
@@ -267,7 +282,7 @@ class SampleHierarchy:
         for leaf in (False, True):
             traverse = self.traverse_programs[count, leaf]
             traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
-                               box_texels=1, plane_texels=2)
+                               **{name: unit for name, (unit, _, _) in TEXELS.items()})
             _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):
@@ -300,7 +315,7 @@ class SampleHierarchy:
         return out
 
     def release(self) -> None:
-        GL.glDeleteTextures(2, [self.box_texels, self.plane_texels])
+        GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
         GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
                                self.queues, self.planes, self.closed_side, self.sample_slices])
         for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),

@@ -25,7 +25,7 @@ void main() {
     uint item = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * GROUP_SIZE
         + gl_LocalInvocationIndex;
     if (item >= min(counters[COUNT_LEVELS + level], capacity)) return;
-    uvec2 queued = items[(level & 1u) * capacity + item];
+    uvec2 queued = texelFetch(item_texels, int((level & 1u) * capacity + item)).xy;
     uint tiles = node_size.x * node_size.y, slice = queued.y / tiles, tile = queued.y % tiles;
     uvec2 first = uvec2(tile % node_size.x, tile / node_size.x) * TILE;
     vec4 volume[4] = volume_planes(queued.x);
@@ -35,8 +35,10 @@ void main() {
         if (any(greaterThanEqual(child, child_size))) continue;
         uint index = child.y * child_size.x + child.x;
         vec4 p = sample_position(child);
-        if (p.w < 0.5 || marks[index] != 0u) continue;  // already shadowed: nothing to learn
-        if (slices > 1u && sample_slices[index] != slice) continue;  // another cluster's
+        // already shadowed: nothing to learn
+        if (p.w < 0.5 || texelFetch(mark_texels, int(index)).x != 0u) continue;
+        // another cluster's
+        if (slices > 1u && texelFetch(slice_texels, int(index)).x != slice) continue;
         TALLY(COUNT_SAMPLE_TESTS);
         if (inside_volume(volume, p.xyz)) marks[index] = 1u;
     }
@@ -49,7 +51,7 @@ void main() {
         uvec2 child = first + uvec2(c % TILE, c / TILE);
         if (any(greaterThanEqual(child, child_size))) continue;
         uint node = child_first + base + child.y * child_size.x + child.x;
-        if (marks[sample_count + node] != 0u) continue;  // shadowed whole already
+        if (texelFetch(mark_texels, int(sample_count + node)).x != 0u) continue;  // shadowed whole already
         vec3 lo, hi;
         node_box(node, lo, hi);
         if (any(greaterThan(lo, hi))) continue;

@@ -8,10 +8,13 @@
 // planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
 layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // 4 per queued triangle
 layout(std430, binding = 3) buffer Boxes { vec4 boxes[]; };  // per node: min, max (xyz)
-// The same volumes and boxes as buffer textures (RGBA32F), through which the traversal reads
-// them: llvmpipe loads a storage buffer's vector lane by lane, a texel in one fetch.
+// The same volumes, boxes, marks and queues as buffer textures (hierarchy.py's TEXELS), through
+// which the traversal reads them: llvmpipe loads a storage buffer's vector lane by lane, a
+// texel in one fetch. A mark read so can miss one set in the same dispatch: it only saves work.
 uniform samplerBuffer plane_texels;
 uniform samplerBuffer box_texels;
+uniform usamplerBuffer mark_texels;
+uniform usamplerBuffer item_texels;
 layout(std430, binding = 4) buffer Marks { uint marks[]; };  // samples, then nodes per level
 layout(std430, binding = 5) buffer Queues { uvec2 items[]; };  // (volume, node), 2 regions
 // COUNT_* entries, then per level the items queued for it (each level's queue region holds at
