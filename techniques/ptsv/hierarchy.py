@@ -32,7 +32,7 @@ EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which i
 MIN_CAPACITY = 1 << 14
 MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the triangles go in batches
 ITEM_BYTES = 8  # (volume, node)
-PLANES_BYTES = 64  # four vec4 per volume
+PLANES_BYTES = 80  # five vec4 per volume: four planes, its bounds across a directional light
 BOX_BYTES = 32
 
 
@@ -107,6 +107,16 @@ def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
     GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
     GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, buffer)
     GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
+
+
+def _across(light: np.ndarray) -> dict:
+    """``light_u``, ``light_v``: two unit axes across a directional light (zero otherwise)."""
+    if light[3] != 0:
+        return {"light_u": np.zeros(3, np.float32), "light_v": np.zeros(3, np.float32)}
+    d = np.asarray(light[:3], np.float64) / np.linalg.norm(light[:3])
+    u = np.cross(d, np.eye(3)[np.argmin(np.abs(d))])
+    u /= np.linalg.norm(u)
+    return {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32)}
 
 
 def _rows(groups: int) -> tuple[int, int]:
@@ -269,8 +279,8 @@ class SampleHierarchy:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
-        shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
-                      volume_capacity=self.volume_capacity, sample_count=self.samples,
+        shared = dict(**_across(light), origin=np.asarray(origin, np.float32), tie=float(tie),
+                      capacity=self.capacity, volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
         setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})

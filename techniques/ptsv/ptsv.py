@@ -44,7 +44,8 @@ class PerTriangleShadowVolumes(Technique):
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
     per-triangle volumes; in a closed part only the triangles facing the light, which shadow
     all that the part does) and tests the root, then descends level by level: a node outside the
-    volume is skipped, one inside is marked shadowed whole, any other has its children tested,
+    volume (beyond one of its planes or, for a directional light, beyond its triangle's bounds
+    on two axes across the light) is skipped, one inside is marked shadowed whole, any other has its children tested,
     down to the samples themselves. Work moves between levels in queues of (volume, node)
     items filled by atomics and dispatched indirectly; a work group tests one node's children,
     whatever the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where

@@ -28,7 +28,7 @@ void main() {
     uvec2 queued = texelFetch(item_texels, int((level & 1u) * capacity + item)).xy;
     uint tiles = node_size.x * node_size.y, slice = queued.y / tiles, tile = queued.y % tiles;
     uvec2 first = uvec2(tile % node_size.x, tile / node_size.x) * TILE;
-    vec4 volume[4] = volume_planes(queued.x);
+    vec4 volume[VOLUME_ROWS] = volume_planes(queued.x);
 #ifdef LEAF
     for (uint c = 0u; c < CHILDREN; ++c) {
         uvec2 child = first + uvec2(c % TILE, c / TILE);
