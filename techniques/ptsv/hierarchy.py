@@ -32,7 +32,7 @@ EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which i
 MIN_CAPACITY = 1 << 14
 MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the triangles go in batches
 ITEM_BYTES = 8  # (volume, node)
-PLANES_BYTES = 64  # four vec4 per volume
+PLANES_BYTES = 80  # five vec4 per volume: four planes, its bounds across a directional light
 BOX_BYTES = 32
 
 
@@ -87,7 +87,36 @@ def _set(program, **uniforms) -> None:
 
 
 def _barrier() -> None:
-    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT)
+    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT
+                       | GL.GL_TEXTURE_FETCH_BARRIER_BIT)
+
+
+# The buffer textures over the storage buffers through which the traversal reads them (llvmpipe
+# loads a storage buffer's vector lane by lane, a texel in one fetch): sampler uniform ->
+# (texture unit, texel format, bytes a texel).
+TEXELS = {"box_texels": (1, GL.GL_RGBA32F, 16), "plane_texels": (2, GL.GL_RGBA32F, 16),
+          "item_texels": (3, GL.GL_RG32UI, 8), "mark_texels": (4, GL.GL_R32UI, 4),
+          "slice_texels": (5, GL.GL_R32UI, 4)}
+
+
+def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
+    """Make ``texture`` the buffer texture ``name`` (TEXELS) over storage ``buffer``."""
+    _, texel_format, texel_bytes = TEXELS[name]
+    if max(nbytes, 16) // texel_bytes > int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_BUFFER_SIZE)):
+        raise ValueError(f"ptsv: {nbytes} bytes, over the driver's buffer-texture size")
+    GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
+    GL.glTexBuffer(GL.GL_TEXTURE_BUFFER, texel_format, buffer)
+    GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
+
+
+def _across(light: np.ndarray) -> dict:
+    """``light_u``, ``light_v``: two unit axes across a directional light (zero otherwise)."""
+    if light[3] != 0:
+        return {"light_u": np.zeros(3, np.float32), "light_v": np.zeros(3, np.float32)}
+    d = np.asarray(light[:3], np.float64) / np.linalg.norm(light[:3])
+    u = np.cross(d, np.eye(3)[np.argmin(np.abs(d))])
+    u /= np.linalg.norm(u)
+    return {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32)}
 
 
 def _rows(groups: int) -> tuple[int, int]:
@@ -112,9 +141,8 @@ class SampleHierarchy:
         # tiles: the top level's one node; clusters: one more node over the top level's slices
         self.root = self.node_first[self.levels] if slices == 1 else self.node_first[-1]
         self.nodes = self.root + 1
-        self.items_per_group = max(1, 64 // (tile * tile))
-        defines = {"TILE": tile, "ITEMS_PER_GROUP": self.items_per_group,
-                   "GROUP_SIZE": tile * tile * self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
+        self.items_per_group = 64  # the traversal's: one invocation per queued item
+        defines = {"TILE": tile, "GROUP_SIZE": self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
 
         def program(name, **more):
             return ComputeProgram(HERE / name, {**defines, **more})
@@ -124,13 +152,22 @@ class SampleHierarchy:
         # the timed programs, and the same counting their work for the untimed repeat
         self.setup_programs = {c: program("ptsv_setup.comp.glsl", **({"COUNT": 1} if c else {}))
                                for c in (False, True)}
-        self.traverse_programs = {c: program("ptsv_traverse.comp.glsl",
-                                             **({"COUNT": 1} if c else {})) for c in (False, True)}
+        # per (counting, level 1): level 1 tests samples, the levels above nodes
+        self.traverse_programs = {(c, leaf): program("ptsv_traverse.comp.glsl",
+                                                     **({"COUNT": 1} if c else {}),
+                                                     **({"LEAF": 1} if leaf else {}))
+                                  for c in (False, True) for leaf in (False, True)}
         self.boxes = _storage(self.nodes * BOX_BYTES)
+        self.textures = dict(zip(TEXELS, GL.glGenTextures(len(TEXELS))))
         self.marks = _storage((self.samples + self.nodes) * 4)
         self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
         self.dispatch = _storage(12)
         self.sample_slices = _storage(self.samples * 4 if slices > 1 else 0)
+        for name, buffer, nbytes in (("box_texels", self.boxes, self.nodes * BOX_BYTES),
+                                     ("mark_texels", self.marks, (self.samples + self.nodes) * 4),
+                                     ("slice_texels", self.sample_slices,
+                                      self.samples * 4 if slices > 1 else 0)):
+            _texels(self.textures[name], name, buffer, nbytes)
         self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
         GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
@@ -156,13 +193,21 @@ class SampleHierarchy:
                 GL.glDeleteBuffers(1, [self.queues])
             self.capacity = capacity
             self.queues = _storage(2 * capacity * ITEM_BYTES)
+            _texels(self.textures["item_texels"], "item_texels", self.queues,
+                    2 * capacity * ITEM_BYTES)
         if volume_capacity > self.volume_capacity:
             if self.planes:
                 GL.glDeleteBuffers(1, [self.planes])
             self.volume_capacity = volume_capacity
             self.planes = _storage(volume_capacity * PLANES_BYTES)
+            _texels(self.textures["plane_texels"], "plane_texels", self.planes,
+                    volume_capacity * PLANES_BYTES)
 
     def _bind(self) -> None:
+        for name, texture in self.textures.items():
+            GL.glActiveTexture(GL.GL_TEXTURE0 + TEXELS[name][0])
+            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
+        GL.glActiveTexture(GL.GL_TEXTURE0)
         for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
                                 (5, self.queues), (6, self.counters), (9, self.sample_slices)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
@@ -234,18 +279,21 @@ class SampleHierarchy:
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
-        shared = dict(origin=np.asarray(origin, np.float32), tie=float(tie), capacity=self.capacity,
-                      volume_capacity=self.volume_capacity, sample_count=self.samples,
+        shared = dict(**_across(light), origin=np.asarray(origin, np.float32), tie=float(tie),
+                      capacity=self.capacity, volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
+        setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
         _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
              triangle_end=end, root=self.root, root_level=self.levels,
              top_first=self.node_first[self.levels], **shared)
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
-        traverse = self.traverse_programs[count]
-        traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor)
-        _set(traverse, **shared)
+        for leaf in (False, True):
+            traverse = self.traverse_programs[count, leaf]
+            traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
+                               **{name: unit for name, (unit, _, _) in TEXELS.items()})
+            _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):
             _set(self.dispatch_program.use(), level=level, items_per_group=self.items_per_group,
@@ -253,8 +301,9 @@ class SampleHierarchy:
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
             cw, ch = self.sizes[level - 1]
-            _set(traverse.use(), level=level, node_size=self.sizes[level],
-                 child_size=(cw, ch), child_first=self.node_first[level - 1] if level > 1 else 0)
+            _set(self.traverse_programs[count, level == 1].use(), level=level,
+                 node_size=self.sizes[level], child_size=(cw, ch),
+                 child_first=self.node_first[level - 1] if level > 1 else 0)
             GL.glDispatchComputeIndirect(0)
             _barrier()
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, 0)
@@ -276,6 +325,7 @@ class SampleHierarchy:
         return out
 
     def release(self) -> None:
+        GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
         GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
                                self.queues, self.planes, self.closed_side, self.sample_slices])
         for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),

@@ -44,10 +44,12 @@ class PerTriangleShadowVolumes(Technique):
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
     per-triangle volumes; in a closed part only the triangles facing the light, which shadow
     all that the part does) and tests the root, then descends level by level: a node outside the
-    volume is skipped, one inside is marked shadowed whole, any other has its children tested,
-    down to the samples themselves. Work moves between levels in queues of (volume, node)
-    items filled by atomics and dispatched indirectly; a work group tests one node's children,
-    whatever the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where
+    volume (beyond one of its planes or, for a directional light, beyond its triangle's bounds
+    on two axes across the light) is skipped, one inside is marked shadowed whole, any other
+    has its children tested, down to the samples themselves. Work moves between levels in
+    queues of (volume, node) items filled by atomics (one per item's queued children) and
+    dispatched indirectly; an invocation tests one item's node's children in a loop, whatever
+    the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where
     a sample or any node above it was marked. Samples are tested where they are, so open parts,
     triangle soups and the camera inside a shadow need nothing special, and there is no near or
     far plane to clip against. A point exactly on its own triangle's plane (within float32

@@ -14,6 +14,7 @@ vec4 sample_position(uvec2 s) {
 // between the nearest and farthest view depths of the scene's bounds (slices at either end take
 // what lies beyond); the box pass stores it per sample, which the traversal and V then read.
 layout(std430, binding = 9) buffer Slices { uint sample_slices[]; };
+uniform usamplerBuffer slice_texels;  // the same, read as a buffer texture by the traversal
 uniform vec4 depth_plane;  // view depth of a position relative to `origin`: dot(xyz, p) + w
 uniform vec2 slice_map;  // slice = floor(log(depth) * x + y), clamped to 0 .. slices - 1
 

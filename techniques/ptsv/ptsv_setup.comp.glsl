@@ -51,7 +51,7 @@ void main() {
         TALLY(COUNT_CULLED);
         return;
     }
-    vec4 volume[4];
+    vec4 volume[VOLUME_ROWS];
     // the triangle's plane: the light on its positive side, so the shadow is behind it
     vec3 toward = normalize(facing > 0.0 ? n : -n);
     volume[0] = vec4(toward, -dot(toward, p[0]));
@@ -60,6 +60,10 @@ void main() {
         bool ordered = index_data[3u * triangle + uint(a)] < index_data[3u * triangle + uint(b)];
         volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
     }
+    vec3 u = vec3(dot(p[0], light_u), dot(p[1], light_u), dot(p[2], light_u));
+    vec3 v = vec3(dot(p[0], light_v), dot(p[1], light_v), dot(p[2], light_v));
+    volume[4] = vec4(min(min(u.x, u.y), u.z) - tie, max(max(u.x, u.y), u.z) + tie,
+                     min(min(v.x, v.y), v.z) - tie, max(max(v.x, v.y), v.z) + tie);
     TALLY(COUNT_NODE_TESTS);
     vec3 lo, hi;
     node_box(root, lo, hi);
@@ -73,7 +77,9 @@ void main() {
     } else {
         uint queued = atomicAdd(counters[COUNT_VOLUMES], 1u);
         if (queued >= volume_capacity) return;  // counted: the caller makes room, runs again
-        for (uint k = 0u; k < 4u; ++k) planes[4u * queued + k] = volume[k];
+        for (uint k = 0u; k < uint(VOLUME_ROWS); ++k) {
+            planes[uint(VOLUME_ROWS) * queued + k] = volume[k];
+        }
         if (slices == 1u) {
             push(root_level, queued, 0u);
             return;

@@ -6,8 +6,15 @@
 // origin. A point is inside the volume where it is behind the triangle's plane by more than
 // `tie` (the receiver's own triangle is no caster) and on the negative side of all three edge
 // planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
-layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // 4 per queued triangle
+layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // VOLUME_ROWS per queued triangle
 layout(std430, binding = 3) buffer Boxes { vec4 boxes[]; };  // per node: min, max (xyz)
+// The same volumes, boxes, marks and queues as buffer textures (hierarchy.py's TEXELS), through
+// which the traversal reads them: llvmpipe loads a storage buffer's vector lane by lane, a
+// texel in one fetch. A mark read so can miss one set in the same dispatch: it only saves work.
+uniform samplerBuffer plane_texels;
+uniform samplerBuffer box_texels;
+uniform usamplerBuffer mark_texels;
+uniform usamplerBuffer item_texels;
 layout(std430, binding = 4) buffer Marks { uint marks[]; };  // samples, then nodes per level
 layout(std430, binding = 5) buffer Queues { uvec2 items[]; };  // (volume, node), 2 regions
 // COUNT_* entries, then per level the items queued for it (each level's queue region holds at
@@ -23,6 +30,11 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 #define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
 
 uniform vec3 origin;
+// Directional light: two unit axes across its direction (zero for a spot or point light), on
+// which a volume's cross-section lies within its triangle's bounds (the volume's last row).
+uniform vec3 light_u;
+uniform vec3 light_v;
+#define VOLUME_ROWS 5  // vec4 per volume: its four planes, then (u min, u max, v min, v max)
 uniform float tie;  // how far behind its own plane a point must be to be shadowed
 uniform uint capacity;  // items per queue region
 uniform uint volume_capacity;  // rows of 4 planes in `planes`
@@ -51,7 +63,15 @@ bool inside_edge(vec4 plane, vec3 p) {
 // -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
 // wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
 // edge plane counts as partly, so the samples there meet the tie-break above).
-int classify(vec4 volume[4], vec3 lo, vec3 hi) {
+int classify(vec4 volume[VOLUME_ROWS], vec3 lo, vec3 hi) {
+    // outside the triangle's bounds across a directional light (widened by `tie` for rounding;
+    // for other lights the bounds hold every box): a box the edge planes do not separate, e.g.
+    // beyond a corner of the triangle
+    vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
+    float cu = dot(c, light_u), eu = dot(e, abs(light_u));
+    float cv = dot(c, light_v), ev = dot(e, abs(light_v));
+    vec4 bounds = volume[4];
+    if (cu - eu > bounds.y || cu + eu < bounds.x || cv - ev > bounds.w || cv + ev < bounds.z) return -1;
     bool inside = true;
     for (int k = 0; k < 4; ++k) {
         vec4 plane = volume[k];
@@ -65,20 +85,22 @@ int classify(vec4 volume[4], vec3 lo, vec3 hi) {
     return inside ? 1 : 0;
 }
 
-bool inside_volume(vec4 volume[4], vec3 p) {
+bool inside_volume(vec4 volume[VOLUME_ROWS], vec3 p) {
     return dot(volume[0].xyz, p) + volume[0].w < -tie && inside_edge(volume[1], p)
         && inside_edge(volume[2], p) && inside_edge(volume[3], p);
 }
 
-vec4[4] volume_planes(uint volume) {
-    uint base = 4u * volume;
-    return vec4[4](planes[base], planes[base + 1u], planes[base + 2u], planes[base + 3u]);
+vec4[VOLUME_ROWS] volume_planes(uint volume) {
+    int base = VOLUME_ROWS * int(volume);
+    return vec4[VOLUME_ROWS](texelFetch(plane_texels, base), texelFetch(plane_texels, base + 1),
+                             texelFetch(plane_texels, base + 2), texelFetch(plane_texels, base + 3),
+                             texelFetch(plane_texels, base + 4));
 }
 
 // A node's box; empty (lo > hi) where none of its samples is covered.
 void node_box(uint node, out vec3 lo, out vec3 hi) {
-    lo = boxes[2u * node].xyz;
-    hi = boxes[2u * node + 1u].xyz;
+    lo = texelFetch(box_texels, 2 * int(node)).xyz;
+    hi = texelFetch(box_texels, 2 * int(node) + 1).xyz;
 }
 
 void mark_node(uint node) {
