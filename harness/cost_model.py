@@ -113,7 +113,12 @@ LLVMPIPE = Coefficients(
     per_fetch_ms=2.581e-5,
     per_byte_ms=0.0,
     per_compute_ms=2.582e-4,
-    # not in that fit (it predates rt): 0 until refitted over runs that trace rays
+    # not in that fit (it predates rt). fit_terms over make scale's 60 ray-traced runs
+    # (2026-12-03, `python -m harness.cost_model results/scale --terms per_node_ms,per_test_ms`)
+    # gives 0 for both: the terms above already price rt's frames at or above their time (one
+    # compute invocation per mask texel at 2.58e-4 ms is 68 ms at 512^2, against 13-173 ms
+    # measured), so on llvmpipe the traversal's work is not told apart; a joint refit of
+    # every term over bench and scale runs would be needed
     per_node_ms=0.0,
     per_test_ms=0.0,
 )
