@@ -12,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -326,6 +327,21 @@ def chromium(profile: Path, width: int = 1400, height: int = 1000):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+
+
+BROWSER_WAIT_S = 60  # a chart page on 2 busy cores draws within seconds; a minute is a hang
+
+
+def wait_for(driver, script: str, what: str):
+    """The first truthy value of ``script`` in the browser, polled every 0.1 s; the test fails
+    naming ``what`` after BROWSER_WAIT_S."""
+    deadline = time.monotonic() + BROWSER_WAIT_S
+    while time.monotonic() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.1)
+    pytest.fail(f"timed out after {BROWSER_WAIT_S} s waiting for {what}")
 
 
 def render_once(technique, frame):

@@ -50,6 +50,31 @@ def render(technique, frame) -> np.ndarray:
         reset_gl_state()
 
 
+def follow_then_still(params, frame, still, after_prepare=None, after_frames=None):
+    """rt with ``params`` prepared on ``frame`` (frame 0 of a moving scene), then frames 0, 1
+    and 2 rendered; then a fresh rt on ``still`` (that scene's frame 2 as a still scene).
+    ``after_prepare()`` and ``after_frames()`` run between the steps. Returns frame 0's V,
+    frame 2's V and the still run's V; both techniques and both frames are released."""
+    cls = registry.get("rt")
+    moved, fresh = cls(params), cls(params)
+    try:
+        moved.prepare(frame)
+        if after_prepare:
+            after_prepare()
+        first = render(moved, frame)
+        for t in (1, 2):
+            frame.move_to(t)
+            followed = render(moved, frame)
+        if after_frames:
+            after_frames()
+        fresh.prepare(still)
+        return first, followed, render(fresh, still)
+    finally:
+        for resource in (moved, fresh, frame, still):
+            resource.release()
+        reset_gl_state()
+
+
 def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_context,
                                                                             monkeypatch):
     """Frame 2 of MOVING (prepared at frame 0, updated at each frame) gives bit for bit the V
@@ -58,11 +83,9 @@ def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_co
     Catches the top level never rebuilt (update a no-op after the first: frame 2 shows frame
     0's shadow), the rebuild moved out of the timed pass, and bottom levels rebuilt each
     frame (the builder called with ``sah`` after prepare)."""
-    cls = registry.get("rt")
-    params = cls.Params(build="sah")
+    params = registry.get("rt").Params(build="sah")
     moving = build_scene("moving", config.Scene(**MOVING))
     frame, still = Frame(moving), Frame(moving.at_frame(2))
-    moved, fresh = cls(params), cls(params)
     builds, active = [], []
     real_build, real_build_all, real_measure = levels.bvh.build, levels.bvh.build_all, frame.measure
 
@@ -83,27 +106,21 @@ def test_moved_caster_equals_a_still_run_and_only_the_top_level_is_rebuilt(gl_co
         finally:
             active.pop()
 
-    try:
-        monkeypatch.setattr(levels.bvh, "build", spy_build)
-        monkeypatch.setattr(levels.bvh, "build_all", spy_build_all)
-        monkeypatch.setattr(frame, "measure", spy_measure)
-        moved.prepare(frame)
+    def prepared():
         assert builds == [("sah", 4, (), 3)]  # the three parts' bottom levels, one forest
         builds.clear()
-        first = render(moved, frame)
-        for t in (1, 2):
-            frame.move_to(t)
-            followed = render(moved, frame)
+
+    def followed_to_frame_2():
         assert builds == [("lbvh", 1, ("tlas",))] * 3  # frames 0, 1, 2: the top level alone
         assert [p.name for p in frame.meter.passes()] == ["tlas", "trace", "visibility"]
-        fresh.prepare(still)
-        expected = render(fresh, still)
-        np.testing.assert_array_equal(followed, expected)
-        assert np.count_nonzero(followed != first) > 20
-    finally:
-        for resource in (moved, fresh, frame, still):
-            resource.release()
-        reset_gl_state()
+
+    monkeypatch.setattr(levels.bvh, "build", spy_build)
+    monkeypatch.setattr(levels.bvh, "build_all", spy_build_all)
+    monkeypatch.setattr(frame, "measure", spy_measure)
+    first, followed, expected = follow_then_still(params, frame, still, prepared,
+                                                  followed_to_frame_2)
+    np.testing.assert_array_equal(followed, expected)
+    assert np.count_nonzero(followed != first) > 20
 
 
 def test_the_embree_backend_moves_instances_and_builds_once(gl_context, monkeypatch):
@@ -116,32 +133,23 @@ def test_the_embree_backend_moves_instances_and_builds_once(gl_context, monkeypa
     frame (the backend's first version: 3 loads). All three seen failing."""
     from harness import reference
 
-    cls = registry.get("rt")
-    params = cls.Params(backend="embree")
+    params = registry.get("rt").Params(backend="embree")
     moving = build_scene("moving", config.Scene(**away_from_the_origin(MOVING, [40, 20, 0])))
     frame, still = Frame(moving), Frame(moving.at_frame(2))
-    moved, fresh = cls(params), cls(params)
     mi = reference.mitsuba_module(reference.choose_variant())
     loads, real_load = [], mi.load_dict
     monkeypatch.setattr(mi, "load_dict",
                         lambda d: loads.append(d["type"]) or real_load(d))
-    try:
-        moved.prepare(frame)
-        first = render(moved, frame)
-        for t in (1, 2):
-            frame.move_to(t)
-            followed = render(moved, frame)
+
+    def followed_to_frame_2():
         assert loads.count("scene") == 1
         assert [p.name for p in frame.meter.passes()] == [
             "tlas", "readback", "trace", "upload", "visibility"]
-        fresh.prepare(still)
-        expected = render(fresh, still)
-        np.testing.assert_array_equal(followed, expected)
-        assert np.count_nonzero(followed != first) > 20
-    finally:
-        for resource in (moved, fresh, frame, still):
-            resource.release()
-        reset_gl_state()
+
+    first, followed, expected = follow_then_still(params, frame, still,
+                                                  after_frames=followed_to_frame_2)
+    np.testing.assert_array_equal(followed, expected)
+    assert np.count_nonzero(followed != first) > 20
 
 
 def test_moved_boxes_hold_every_moved_corner_and_no_more():

@@ -139,18 +139,14 @@ def test_without_pipeline_statistics_columns_are_empty_and_the_manifest_says_why
     assert manifest["gl"]["pipeline_statistics"] == {"available": False, "why": reason}
 
 
-def test_fit_recovers_known_coefficients():
-    """Rows made from known coefficients: the fit returns them and reports R^2 = 1 and no
-    error; the stored llvmpipe coefficients are non-negative. Half the rows traced rays
-    (traversal nodes and triangle tests), the others have no such columns (no work: 0).
+TRUTH = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6, 5e-7, 7e-7)
 
-    Catches: features in another order than the coefficients, scaling not undone, a row
-    without traversal counts taken as unusable."""
-    rng = np.random.default_rng(0)
-    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6, 5e-7,
-                                    7e-7)
+
+def counted_rows(rng, runs: int) -> list[dict]:
+    """``runs`` results rows with random work counters and no time; the odd ones traced rays
+    (traversal nodes and triangle tests), the even ones have no such columns."""
     rows = []
-    for i in range(40):
+    for i in range(runs):
         row = {"status": "ok", "scene": "s", "width": 8, "height": 8, "technique": "t",
                "params": "{}", "passes": json.dumps([{}] * int(rng.integers(1, 5))),
                "vertex_invocations": int(rng.integers(3, 10**5)),
@@ -162,10 +158,22 @@ def test_fit_recovers_known_coefficients():
         if i % 2:
             row.update(traversal_nodes=int(rng.integers(10**4, 10**7)),
                        triangle_tests=int(rng.integers(10**3, 10**6)))
-        row["time_ms"] = cost_model.estimate_ms(row, truth)
         rows.append(row)
+    return rows
+
+
+def test_fit_recovers_known_coefficients():
+    """Rows made from known coefficients: the fit returns them and reports R^2 = 1 and no
+    error; the stored llvmpipe coefficients are non-negative. Half the rows traced rays
+    (traversal nodes and triangle tests), the others have no such columns (no work: 0).
+
+    Catches: features in another order than the coefficients, scaling not undone, a row
+    without traversal counts taken as unusable."""
+    rows = counted_rows(np.random.default_rng(0), 40)
+    for row in rows:
+        row["time_ms"] = cost_model.estimate_ms(row, TRUTH)
     fitted = cost_model.fit(rows)
-    assert np.allclose(fitted.vector(), truth.vector(), rtol=1e-6)
+    assert np.allclose(fitted.vector(), TRUTH.vector(), rtol=1e-6)
     quality = cost_model.fit_quality(rows, fitted)
     assert quality["r2"] == pytest.approx(1.0) and quality["worst_relative_error"] < 1e-6
     assert (cost_model.LLVMPIPE.vector() >= 0).all()
@@ -184,25 +192,12 @@ def test_fit_terms_prices_new_work_without_moving_the_rest():
     the two, leaves the others as they were, and uses only the rows with traversal work.
     Catches: the fixed terms' time not taken off first (the two absorb it), rows without the
     work in the fit, an unknown term accepted."""
-    rng = np.random.default_rng(1)
-    truth = cost_model.Coefficients("truth", "test", 0.2, 1e-5, 2e-6, 4e-6, 1e-8, 3e-6, 5e-7,
-                                    7e-7)
-    base = dataclasses.replace(truth, per_node_ms=0.0, per_test_ms=0.0)
-    rows = []
-    for i in range(30):
-        row = {"status": "ok", "scene": "s", "width": 8, "height": 8, "technique": "t",
-               "params": "{}", "passes": json.dumps([{}] * int(rng.integers(1, 5))),
-               "vertex_invocations": int(rng.integers(3, 10**5)),
-               "fragment_invocations": int(rng.integers(10**3, 10**7)),
-               "fetches_per_px": 1.0, "covered_px": int(rng.integers(10**3, 10**6)),
-               "mem_bytes": 0, "compute_invocations": int(rng.integers(0, 10**6))}
-        if i % 2:
-            row.update(traversal_nodes=int(rng.integers(10**4, 10**7)),
-                       triangle_tests=int(rng.integers(10**3, 10**6)))
-        row["time_ms"] = cost_model.estimate_ms(row, truth) * (1.5 if i % 2 == 0 else 1.0)
-        rows.append(row)
+    base = dataclasses.replace(TRUTH, per_node_ms=0.0, per_test_ms=0.0)
+    rows = counted_rows(np.random.default_rng(1), 30)
+    for i, row in enumerate(rows):  # the rows without traversal work off the base model
+        row["time_ms"] = cost_model.estimate_ms(row, TRUTH) * (1.5 if i % 2 == 0 else 1.0)
     fitted = cost_model.fit_terms(rows, base, ("per_node_ms", "per_test_ms"))
-    assert np.allclose(fitted.vector(), truth.vector(), rtol=1e-6)
+    assert np.allclose(fitted.vector(), TRUTH.vector(), rtol=1e-6)
     assert "over 15 runs" in fitted.source
     with pytest.raises(ValueError, match="terms must be some of"):
         cost_model.fit_terms(rows, base, ("per_nodes_ms",))

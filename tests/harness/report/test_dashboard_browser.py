@@ -12,11 +12,10 @@ import time
 
 import pytest
 
-from helpers import chromium
+from helpers import chromium, wait_for
 
 from harness import report
 
-DRAW_TIMEOUT_S = 60
 LOAD_TIMES = """
     const t = performance.getEntriesByType("navigation")[0];
     return [t.domInteractive, t.domContentLoadedEventEnd, t.loadEventEnd];"""
@@ -38,23 +37,13 @@ def browser(tmp_path_factory):
     driver.quit()
 
 
-def _wait_for(driver, script: str, what: str):
-    deadline = time.monotonic() + DRAW_TIMEOUT_S
-    while time.monotonic() < deadline:
-        value = driver.execute_script(script)
-        if value:
-            return value
-        time.sleep(0.1)
-    pytest.fail(f"timed out after {DRAW_TIMEOUT_S} s waiting for {what}")
-
-
 def _errors(driver) -> list:
     return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
 
 
 def _open(driver, path, fragment: str = ""):
     driver.get(path.resolve().as_uri() + fragment)
-    _wait_for(driver, "return document.readyState === 'complete'", "the page to load")
+    wait_for(driver, "return document.readyState === 'complete'", "the page to load")
 
 
 def test_overview_answers_first_and_loads_quickly(page, browser):
@@ -79,7 +68,7 @@ def test_a_scene_draws_its_plot_and_opens_a_run_at_native_size(page, browser):
     """The scene's plot has one panel per image size and a point per run; a click on a run row
     shows its images, a click on its V opens it at native size (96 px, from the file beside)."""
     _open(browser, page, "#scene-box_plane")
-    _wait_for(browser, "return document.querySelectorAll("
+    wait_for(browser, "return document.querySelectorAll("
               "'#scene-box_plane .cost-accuracy svg.chart').length === 2", "two plot panels")
     points = browser.execute_script(
         "return document.querySelectorAll('#scene-box_plane svg.chart circle.point').length")
@@ -90,7 +79,7 @@ def test_a_scene_draws_its_plot_and_opens_a_run_at_native_size(page, browser):
     row.click()
     assert "selected" in row.get_attribute("class")
     browser.find_element("css selector", "#scene-box_plane figure[data-slot=v] img").click()
-    size = _wait_for(browser, """
+    size = wait_for(browser, """
         const img = document.querySelector('#overlay img');
         return !document.getElementById('overlay').hidden && img.complete && img.naturalWidth
             ? [img.naturalWidth, img.getBoundingClientRect().width, img.src] : null;""",
@@ -112,7 +101,7 @@ def test_index_copied_alone_shows_every_image(page, browser, tmp_path):
     for view in browser.execute_script(
             "return [...document.querySelectorAll('section.view')].map(s => s.id)"):
         browser.execute_script(f"location.hash = '#{view}'")
-        images_here = _wait_for(browser, f"""
+        images_here = wait_for(browser, f"""
             const imgs = [...document.getElementById('{view}').querySelectorAll('img[src]')];
             return imgs.every(i => i.complete) ? imgs.map(i => [i.naturalWidth, i.alt]) : null;""",
                                 f"the images of {view}") if view != "stability" else []
@@ -135,7 +124,7 @@ def test_a_hostile_scene_name_runs_no_script(browser, tmp_path, make_results):
         link.click()
         time.sleep(0.2)
     browser.find_element("css selector", "nav .scene-links a").click()
-    _wait_for(browser, "return document.querySelector('section.scene.shown svg.chart')",
+    wait_for(browser, "return document.querySelector('section.scene.shown svg.chart')",
               "the hostile scene's plot")
     assert browser.title == title and "PWNED" not in title
     assert browser.execute_script("return typeof alert === 'function' && !window.PWNED")
@@ -152,7 +141,7 @@ def test_the_scale_view_draws_its_charts(browser, tmp_path, make_results):
     index = report.build_report(scale_folder(tmp_path / "run", make_results))
     _open(browser, index)
     browser.find_element("css selector", "nav a[href='#scale']").click()
-    _wait_for(browser, "return document.querySelector('#scale-front-0 svg.chart')",
+    wait_for(browser, "return document.querySelector('#scale-front-0 svg.chart')",
               "the Scale view's charts")
     panels = browser.execute_script(
         "return ['scale-cost', 'scale-front-0'].map(id => "

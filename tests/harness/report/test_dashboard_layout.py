@@ -25,7 +25,6 @@ from harness import report
 from harness.cli import main as shadowbench
 
 ROOT = Path(__file__).resolve().parents[3]  # the repository (run as a script too: main)
-WAIT_S = 60
 # today's panels were 400 px wide in a 1343 px column; a panel at 1400 px is at least twice that
 WIDE, NARROW, WIDE_PANEL_MIN = 1400, 900, 800
 
@@ -93,19 +92,15 @@ def page(tmp_path_factory, gl_context):
     return report.build_report(out, shown_px=64)
 
 
-def wait(driver, script: str, what: str):
-    deadline = time.monotonic() + WAIT_S
-    while time.monotonic() < deadline:
-        value = driver.execute_script(script)
-        if value:
-            return value
-        time.sleep(0.1)
-    pytest.fail(f"timed out after {WAIT_S} s waiting for {what}")
+def wait_for(driver, script: str, what: str):
+    from helpers import wait_for as poll  # here: the module also runs as a script (main)
+
+    return poll(driver, script, what)
 
 
 def set_width(driver, width: int):
     driver.set_window_size(width, 1000)
-    wait(driver, f"return window.innerWidth === {width}", f"a {width} px window")
+    wait_for(driver, f"return window.innerWidth === {width}", f"a {width} px window")
     time.sleep(0.3)  # the resize observer draws in the next frames
 
 
@@ -118,10 +113,10 @@ def layout(driver, url: str) -> dict:
     for view in views:
         set_width(driver, WIDE)
         driver.execute_script(f"location.hash = '#{view}'")
-        wait(driver, DRAWN, f"the charts of {view}")
+        wait_for(driver, DRAWN, f"the charts of {view}")
         wide = (driver.execute_script(OVERLAPS), driver.execute_script(WIDTHS))
         set_width(driver, NARROW)
-        wait(driver, DRAWN, f"the charts of {view}")
+        wait_for(driver, DRAWN, f"the charts of {view}")
         found[view] = {WIDE: wide, NARROW: (driver.execute_script(OVERLAPS),
                                             driver.execute_script(WIDTHS))}
     found["requests"] = driver.execute_script(REQUESTS)
@@ -156,7 +151,7 @@ def test_hiding_a_technique_places_the_labels_again(page, browser):
     a free spot before the others were hidden; the count varies with the measured times)."""
     browser.get(page.resolve().as_uri() + "#scene-sphere_plane")
     set_width(browser, NARROW)
-    wait(browser, DRAWN, "the scene's plot")
+    wait_for(browser, DRAWN, "the scene's plot")
     count = ("return [...document.querySelectorAll('#scene-sphere_plane svg.chart "
              ".point-label')].length")
     before = browser.execute_script(count)
