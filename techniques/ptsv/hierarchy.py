@@ -96,7 +96,8 @@ def _barrier() -> None:
 # (texture unit, texel format, bytes a texel).
 TEXELS = {"box_texels": (1, GL.GL_RGBA32F, 16), "plane_texels": (2, GL.GL_RGBA32F, 16),
           "item_texels": (3, GL.GL_RG32UI, 8), "mark_texels": (4, GL.GL_R32UI, 4),
-          "slice_texels": (5, GL.GL_R32UI, 4)}
+          "slice_texels": (5, GL.GL_R32UI, 4), "vertex_texels": (6, GL.GL_RGB32F, 12),
+          "index_texels": (7, GL.GL_RGB32UI, 12)}
 
 
 def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
@@ -178,6 +179,7 @@ class SampleHierarchy:
         self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
                    max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
         self.batch = triangles  # triangles per traversal batch, halved while queues overflow
+        self.mesh = None  # the (vertex, index) buffers vertex_texels and index_texels read
 
     @property
     def mem_bytes(self) -> int:
@@ -274,9 +276,14 @@ class SampleHierarchy:
     def _traverse_batch(self, position, vertices, indices, light, origin, tie, count,
                         start: int, end: int) -> np.ndarray:
         _zero(self.counters)
+        if self.mesh != (vertices, indices):
+            self.mesh = (vertices, indices)
+            for name, buffer in (("vertex_texels", vertices), ("index_texels", indices)):
+                GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
+                nbytes = int(GL.glGetBufferParameteriv(GL.GL_TEXTURE_BUFFER, GL.GL_BUFFER_SIZE))
+                GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+                _texels(self.textures[name], name, buffer, nbytes)
         self._bind()
-        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 0, vertices)
-        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 1, indices)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
         shared = dict(**_across(light), origin=np.asarray(origin, np.float32), tie=float(tie),

@@ -8,8 +8,10 @@
 #include "ptsv_volume.glsl"
 
 layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer Vertices { float vertex_data[]; };  // xyz per vertex
-layout(std430, binding = 1) readonly buffer Indices { uint index_data[]; };  // 3 per triangle
+// the scene mesh's vertex (xyz) and index (3 per triangle) buffers, as buffer textures: one
+// fetch a vertex or triangle, where a storage buffer is read lane by lane on llvmpipe
+uniform samplerBuffer vertex_texels;
+uniform usamplerBuffer index_texels;
 // per triangle: 0 in an open part; in a closed part 1 where its winding turns it outward, -1
 // inward. A closed part's light-facing triangles shadow all that it does (a segment from a
 // point outside it, or on it, to the light leaves it through one), so the others are culled.
@@ -22,10 +24,6 @@ uniform uint root;  // the root's node number
 uniform uint root_level;
 uniform uint top_first;  // clusters: node number of the top level's first slice (the root's children)
 
-vec3 corner(uint triangle, uint k) {
-    uint i = 3u * index_data[3u * triangle + k];
-    return vec3(vertex_data[i], vertex_data[i + 1u], vertex_data[i + 2u]) - origin;
-}
 
 // The plane through the edge from p to q (p the end of smaller vertex index, so the two
 // triangles sharing the edge compute the same plane) and the light, turned so that `inner`
@@ -41,7 +39,10 @@ void main() {
         + (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
         + gl_LocalInvocationIndex;
     if (triangle >= triangle_end) return;
-    vec3 p[3] = vec3[3](corner(triangle, 0u), corner(triangle, 1u), corner(triangle, 2u));
+    uvec3 index = texelFetch(index_texels, int(triangle)).xyz;
+    vec3 p[3] = vec3[3](texelFetch(vertex_texels, int(index.x)).xyz - origin,
+                        texelFetch(vertex_texels, int(index.y)).xyz - origin,
+                        texelFetch(vertex_texels, int(index.z)).xyz - origin);
     vec3 n = cross(p[1] - p[0], p[2] - p[0]);
     vec4 light = vec4(light_vector.xyz - origin * light_vector.w, light_vector.w);
     vec3 to_light = light.xyz - p[0] * light.w;
@@ -57,7 +58,7 @@ void main() {
     volume[0] = vec4(toward, -dot(toward, p[0]));
     for (int k = 0; k < 3; ++k) {
         int a = k, b = (k + 1) % 3;
-        bool ordered = index_data[3u * triangle + uint(a)] < index_data[3u * triangle + uint(b)];
+        bool ordered = index[a] < index[b];
         volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
     }
     vec3 u = vec3(dot(p[0], light_u), dot(p[1], light_u), dot(p[2], light_u));
