@@ -92,9 +92,12 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("primitives", float, "count", "primitives reaching the rasteriser", _COUNTERS),
     Column("compute_invocations", float, "count", "compute shader invocations (the GPU "
            "reductions)", _COUNTERS),
-    Column("traversal_nodes", float, "count", "BVH nodes a ray-traced technique's rays entered "
-           "in one frame (counted in an untimed repeat)", "for a technique that traces no rays"),
-    Column("triangle_tests", float, "count", "ray-triangle tests of those rays in one frame",
+    Column("traversal_nodes", float, "count", "nodes of a hierarchy a technique's traversal "
+           "tested in one frame (counted in an untimed repeat): BVH nodes its rays entered, or "
+           "nodes of view samples its shadow volumes were tested against",
+           "for a technique that traverses no hierarchy"),
+    Column("triangle_tests", float, "count", "that traversal's tests of one triangle at the "
+           "leaves in one frame: against a ray, or (its shadow volume) against a view sample",
            "as traversal_nodes"),
     Column("gpu_estimate_ms", float, "ms", "the counted work priced at an RTX 4090's peak rates "
            "(harness.cost_model: a lower bound)", _COUNTERS),

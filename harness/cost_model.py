@@ -6,19 +6,20 @@
                 + per_fetch_ms    * fetches             (fetches_per_px * covered_px)
                 + per_byte_ms     * bytes               (mem_bytes: the maps, written each frame)
                 + per_compute_ms  * compute_invocations (the GPU reductions, e.g. the warps')
-                + per_node_ms     * traversal_nodes     (BVH nodes entered by a frame's rays)
-                + per_test_ms     * triangle_tests      (ray-triangle tests of a frame's rays)
+                + per_node_ms     * traversal_nodes     (hierarchy nodes a frame's traversal tested)
+                + per_test_ms     * triangle_tests      (its triangle tests at the leaves)
 
 Vertex invocations count every vertex a measured pass shades: the scene's shared vertices in
 each map pass (indexed meshes), and the volume vertices a shadow-volume pass extrudes. Compute
 invocations count the reductions' work (one invocation per 16-pixel column of each dispatch)
-and the work of techniques built on compute shaders: a hierarchical test of volumes against
-view samples spends one invocation per triangle set up and one per child node or sample it
-tests (its rows also carry the tests themselves, ``node_tests`` and ``sample_tests``, with
-its ``triangles_culled`` and ``queue_items``), so those tests reach the estimate through the
-compute term, counted once.
-A ray-traced technique counts its traversal's work in an untimed repeat (``traversal_nodes``,
-``triangle_tests``: per frame, over all its rays); a row without them did none (0).
+and the work of techniques built on compute shaders (one invocation per triangle set up, per
+ray, per queued work item).
+A technique that traverses a hierarchy counts its work in an untimed repeat, per frame:
+``traversal_nodes``, the nodes tested (a ray's BVH nodes entered, or the nodes of view samples
+a triangle's shadow volume was tested against), and ``triangle_tests``, the tests of one
+triangle at the leaves (against a ray, or its volume against a view sample); a row without
+them did none (0). A compute invocation tests several nodes in a loop, so the invocation term
+alone does not price them.
 
 All inputs are per frame and stored in each results row, so any estimate can be recomputed
 from results.csv. Two coefficient sets:
@@ -31,12 +32,15 @@ NVIDIA, "NVIDIA Ada GPU Architecture" whitepaper (2023), appendix table "GeForce
 GDDR6X at 21 Gbps gives 1008 GB/s (per byte). The whitepaper gives no vertex rate: per vertex
 assumes 64 FP32 operations (two 4x4 matrix-vector products, what our vertex shaders do) at the
 whitepaper's 82.6 TFLOPS (1.29e12 vertices/s); per compute invocation likewise (a reduction's
-pixel: up to three 4x4 matrix-vector products and a shared-memory step); per node entered 40
-FP32 operations (two slab tests: 12 multiply-subtracts and 12 min/max each, and their
-compares), per triangle test 40 (Woop et al.'s shear and three 2D edge functions: about 30,
-with the distance). A compute traversal on such a GPU is bound by its memory latency more
-than by these rates (and RT cores do the same work in fixed function), so for rays the bound
-is the loosest. Pass overhead is not modelled (0).
+pixel: up to three 4x4 matrix-vector products and a shared-memory step); per node tested 40
+FP32 operations (a ray's two slab tests: 12 multiply-subtracts and 12 min/max each, and their
+compares; a shadow volume's test of a box takes about 100, each of its four planes' nearest and
+farthest corner and its bounds across the light, so there the bound is looser still), per
+triangle test 40 (Woop et al.'s shear and three 2D edge functions: about 30, with the
+distance; a view sample against a volume's four planes, about 30). A compute traversal on such
+a GPU is bound by its memory latency more than by these rates (and RT cores do the same work
+in fixed function), so for traversals the bound is the loosest. Pass overhead is not modelled
+(0).
 
 ``LLVMPIPE``: fitted here by non-negative least squares (:func:`fit`) to llvmpipe's measured
 ``time_ms``, so the model's fit is checkable: ``python -m harness.cost_model DIR`` prints R^2
@@ -93,34 +97,30 @@ RTX_4090 = Coefficients(
     per_test_ms=1e3 / (82.6e12 / 40),
 )
 
-# Fitted under cost: dynamic (every frame charged its maps, fits and reductions; indexed scene
-# meshes) to `make bench`'s curves on the ten shipped scenes (374 runs, 15 frames each:
-# `shadowbench run experiments/default.yaml --scenes sphere_plane,box_plane,pins,castle,crowd,
-# terrain_long,slant_edge,silhouette_hard,camera_in_shadow,jeep`), on 2 cores shared with other
-# jobs (every run noisy): R^2 0.756, relative error median 36%, worst 726% (sv at a quarter mask
-# on slant_edge, 3.9 ms given 32 ms). The previous fit (box_plane and castle only, 76 runs)
-# gave R^2 -14 on these runs: its per-vertex term, fitted on two small scenes, charged crowd's
-# 26k-triangle volumes 1.7 s. The byte term fitted to 0 (map memory is a proxy of the map pass,
-# already counted by its fragments). Refit on a quiet machine with fit(); ``python -m
-# harness.cost_model DIR`` prints both fits.
+# Fitted under cost: dynamic (every frame charged its maps, fits, reductions and traversals)
+# by fit() to the two quiet runs of 2026-12-03 on this project's machine (2 cores, nothing else
+# running): `make bench` (541 ok runs: every technique along its curve on the ten shipped
+# scenes) and `make scale` (648 ok runs: the four scale families at 10^3 to 10^6 triangles), the
+# ptsv rows' node and sample tests as traversal_nodes and triangle_tests; 1189 runs. R^2 0.895
+# over scale's runs, 0.867 over bench's (median relative error 27% and 34%); per technique, the
+# median relative error from 11% (pcf) and 12% (ptsv, R^2 0.98) to 55% (rt). The previous
+# coefficients (374 bench runs on shared cores, before rt and ptsv) gave R^2 -4.3 and -7.2 on
+# the same runs: their per-compute term priced every compute invocation as a reduction's
+# pixel, and a traversal's invocations do very different work. That term now fits to 0 (the
+# reductions' cost is carried by the per-pass term), and the two traversal terms to 14.8 and
+# 12.7 ns a node or triangle test, close to the about 20 ns per node-volume test measured for
+# ptsv's traversal alone. Refit with ``python -m harness.cost_model DIR`` (both fits printed).
 LLVMPIPE = Coefficients(
-    name="llvmpipe (Mesa 22.3.6, LLVM 15.0.6, 256 bits), 2 shared cores",
-    source="fit() over experiments/default.yaml on the ten shipped scenes, 374 runs, "
-           "cost: dynamic",
-    per_pass_ms=6.497,
-    per_vertex_ms=7.641e-5,
-    per_fragment_ms=9.038e-6,
-    per_fetch_ms=2.581e-5,
-    per_byte_ms=0.0,
-    per_compute_ms=2.582e-4,
-    # not in that fit (it predates rt). fit_terms over make scale's 60 ray-traced runs
-    # (2026-12-03, `python -m harness.cost_model results/scale --terms per_node_ms,per_test_ms`)
-    # gives 0 for both: the terms above already price rt's frames at or above their time (one
-    # compute invocation per mask texel at 2.58e-4 ms is 68 ms at 512^2, against 13-173 ms
-    # measured), so on llvmpipe the traversal's work is not told apart; a joint refit of
-    # every term over bench and scale runs would be needed
-    per_node_ms=0.0,
-    per_test_ms=0.0,
+    name="llvmpipe (Mesa 22.3.6, LLVM 15.0.6, 256 bits), 2 cores",
+    source="fit() over make bench and make scale, 1189 runs, quiet, cost: dynamic",
+    per_pass_ms=2.393,
+    per_vertex_ms=1.272e-4,
+    per_fragment_ms=2.546e-6,
+    per_fetch_ms=5.030e-6,
+    per_byte_ms=1.527e-7,
+    per_compute_ms=0.0,
+    per_node_ms=1.479e-5,
+    per_test_ms=1.274e-5,
 )
 
 GPU = RTX_4090  # what results rows store as gpu_estimate_ms

@@ -87,7 +87,6 @@ def _cost_columns(timed, frame) -> dict:
         mesh_notes=frame.scene.mesh_notes,
         warnings="; ".join(output.warnings + ([row["warnings"]] if "warnings" in row else [])),
     )
-    columns["gpu_estimate_ms"] = cost_model.estimate_ms({**row, **columns})
     return columns
 
 
@@ -178,6 +177,7 @@ def _score_row(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     columns, images = _metric_columns(_clean(output.visibility), frame, truth)
     row.update(columns)
     row.update(output.extra)
+    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)  # with the technique's traversal counts
     row["status"] = "ok"
     return row, _frame_arrays(output, frame, truth, images)
 
@@ -311,6 +311,7 @@ def _sequence_row(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
             row[name] = float(np.mean(series[f"extra_{name}"]))
         else:
             row[name] = values[-1]
+    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)  # with the technique's traversal counts
     row["status"] = "ok"
     strip_frames, strip_v, strip_ref, strip_covered = zip(*sequence.strip)
     arrays = {**sequence.first, **sequence.worst,

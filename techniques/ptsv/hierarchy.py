@@ -25,8 +25,10 @@ from harness.gl.shaders import ComputeProgram
 
 HERE = Path(__file__).parent
 # counters (ptsv_volume.glsl's COUNT_*), then one per level: items queued for it
-COUNTER_NAMES = ("volumes_queued", "triangles_culled", "node_tests", "trivial_accepts",
-                 "root_accepts", "sample_tests")
+# the harness's traversal columns: traversal_nodes the node-volume tests, triangle_tests the
+# sample-volume tests (each of one triangle's volume against one view sample)
+COUNTER_NAMES = ("volumes_queued", "triangles_culled", "traversal_nodes", "trivial_accepts",
+                 "root_accepts", "triangle_tests")
 COUNT_LEVELS = 8
 EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which it casts nothing
 MIN_CAPACITY = 1 << 14

@@ -56,8 +56,10 @@ class PerTriangleShadowVolumes(Technique):
     rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it.
 
     Counted in an untimed repeat whenever the light, the camera or an object moved:
-    ``node_tests`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes marked
-    whole; ``root_accepts`` of them at the root), ``sample_tests``, ``triangles_culled``
+    ``traversal_nodes`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes
+    marked whole; ``root_accepts`` of them at the root), ``triangle_tests`` (sample-volume
+    tests: a view sample against one triangle's volume; these two are the harness's traversal
+    columns, which the cost model prices), ``triangles_culled``
     (edge-on, turned from the light in a closed part, or the root's box outside the volume),
     ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
     (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the samples' slices

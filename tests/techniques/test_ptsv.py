@@ -157,8 +157,8 @@ def test_volume_over_the_whole_screen(gl_context, tmp_path, hierarchy):
         assert frame.arrays.covered.all()
         assert (out.visibility == 0).all()
         work = out.extra
-        assert (work["root_accepts"], work["trivial_accepts"], work["node_tests"],
-                work["sample_tests"], work["triangles_culled"]) == (1, 1, 3, 0, 2)
+        assert (work["root_accepts"], work["trivial_accepts"], work["traversal_nodes"],
+                work["triangle_tests"], work["triangles_culled"]) == (1, 1, 3, 0, 2)
     finally:
         frame.release()
 
@@ -176,9 +176,9 @@ def test_clusters_test_fewer_samples(frames):
     frame = frames(SCENE_FILE, "pins")
     tiles = _render(PerTriangleShadowVolumes, frame).extra
     clusters = _render(PerTriangleShadowVolumes, frame, hierarchy="clusters").extra
-    assert 60_000 < tiles["sample_tests"] < 76_000
-    assert 0 < clusters["sample_tests"] < tiles["sample_tests"] / 2
-    assert clusters["node_tests"] < tiles["node_tests"]
+    assert 60_000 < tiles["triangle_tests"] < 76_000
+    assert 0 < clusters["triangle_tests"] < tiles["triangle_tests"] / 2
+    assert clusters["traversal_nodes"] < tiles["traversal_nodes"]
 
 
 @pytest.mark.parametrize("setting,message", [

@@ -91,9 +91,9 @@ def test_a_run_counts_its_scene_triangles(scene_at, evaluate, gl_context):
     assert shadow_map["fragment_invocations"] >= shadow_map["fragments"] > 0
 
 
-def _run(tmp_path, scene_file, *extra):
+def _run(tmp_path, scene_file, *extra, techniques="sm,pcf,sv"):
     out = tmp_path / "out"
-    code = cli.main(["run", "--scene-file", str(scene_file), "--techniques", "sm,pcf,sv",
+    code = cli.main(["run", "--scene-file", str(scene_file), "--techniques", techniques,
                      "--set", "pcf.k=4", "--frames", "2", "--warmup", "0", "--out", str(out),
                      "--quiet", *extra])
     with (out / "results.csv").open() as f:
@@ -103,20 +103,30 @@ def _run(tmp_path, scene_file, *extra):
 def test_gpu_estimate_is_the_model_on_the_stored_counters(tmp_path, small_scene_file,
                                                           gl_context):
     """Recomputed from results.csv alone with the RTX 4090's published rates (whitepaper:
-    443.5 Gpixel/s, 1290.2 Gtexel/s, 1008 GB/s; 82.6 TFLOPS at 64 FLOP a vertex).
+    443.5 Gpixel/s, 1290.2 Gtexel/s, 1008 GB/s; 82.6 TFLOPS at 64 FLOP a vertex or compute
+    invocation, 40 a node or triangle test), a compute traversal (ptsv's volumes against view
+    samples) included: its node and sample tests are stored as traversal_nodes and
+    triangle_tests, which the model prices.
 
     Catches: an estimate from other counts than the stored ones (e.g. fetches per pixel not
-    multiplied by the covered pixels, or counters of another frame), or coefficients that are
-    not the cited figures."""
-    code, _, rows = _run(tmp_path, small_scene_file("box_plane", "sphere_plane"))
-    assert code == 0 and len(rows) == 6
+    multiplied by the covered pixels, or counters of another frame), coefficients that are not
+    the cited figures, and a traversal's tests stored under names the model does not read
+    (ptsv's first ``node_tests`` and ``sample_tests``: no traversal_nodes)."""
+    code, _, rows = _run(tmp_path, small_scene_file("box_plane", "sphere_plane"),
+                         techniques="sm,pcf,sv,ptsv")
+    assert code == 0 and len(rows) == 8
     for r in rows:
-        seconds = (float(r["vertex_invocations"]) * 64 / 82.6e12
+        work = {k: float(r[k] or 0) for k in ("compute_invocations", "traversal_nodes",
+                                              "triangle_tests")}
+        seconds = ((float(r["vertex_invocations"]) + work["compute_invocations"]) * 64 / 82.6e12
                    + float(r["fragment_invocations"]) / 443.5e9
                    + float(r["fetches_per_px"]) * float(r["covered_px"]) / 1290.2e9
-                   + float(r["mem_bytes"]) / 1008e9)
+                   + float(r["mem_bytes"]) / 1008e9
+                   + (work["traversal_nodes"] + work["triangle_tests"]) * 40 / 82.6e12)
         assert float(r["gpu_estimate_ms"]) == pytest.approx(seconds * 1e3, rel=1e-9), r
         assert float(r["covered_px"]) > 0 and float(r["vertex_invocations"]) > 0
+        if r["technique"] == "ptsv":
+            assert work["traversal_nodes"] > 0 and work["triangle_tests"] > 0, r
 
 
 def test_without_pipeline_statistics_columns_are_empty_and_the_manifest_says_why(
