@@ -70,8 +70,9 @@ class PerTriangleShadowVolumes(Technique):
     ==============  ====================================================  =======  ===========
     Parameter       Meaning                                               Default  Range
     ==============  ====================================================  =======  ===========
-    ``hierarchy``   ``tiles``: screen tiles of samples, bounds per tile;  tiles
-                    ``clusters``: per tile and depth slice
+    ``hierarchy``   ``clusters``: bounds per screen tile and depth       clusters
+                    slice; ``tiles``: per screen tile (cheaper to
+                    build; slower where depth varies within a tile)
     ``tile``        children per node along each axis (a power of two)    2        2 .. 16
     ``slices``      depth slices per tile (clusters only; log depth)      16       2 .. 64
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
@@ -92,7 +93,7 @@ class PerTriangleShadowVolumes(Technique):
     rivals = ("sv", "rt")  # the other exact methods: volumes with fill, rays
 
     class Params(TechniqueParams):
-        hierarchy: Literal["tiles", "clusters"] = "tiles"
+        hierarchy: Literal["tiles", "clusters"] = "clusters"
         tile: int = Field(2, ge=2, le=16)
         slices: int = Field(16, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"

@@ -132,8 +132,8 @@ def test_same_v_as_sv(frames, path, name):
     reach differs: a tie, a box test and a sample test rounding apart)."""
     frame = frames(path, name)
     sv = _render(ShadowVolumes, frame).visibility
-    tiles = _render(PerTriangleShadowVolumes, frame).visibility
-    clusters = _render(PerTriangleShadowVolumes, frame, hierarchy="clusters").visibility
+    tiles = _render(PerTriangleShadowVolumes, frame, hierarchy="tiles").visibility
+    clusters = _render(PerTriangleShadowVolumes, frame).visibility
     expected = DIFFERENCES.get(name, (0, 0, 0, 0))
     for ptsv in (tiles, clusters):
         counted = _differences(frame, ptsv, sv)
@@ -174,8 +174,8 @@ def test_clusters_test_fewer_samples(frames):
     not tested, and which volume comes first is the threads' race), so the test asks for less
     than half the tiles' sample tests and fewer node tests."""
     frame = frames(SCENE_FILE, "pins")
-    tiles = _render(PerTriangleShadowVolumes, frame).extra
-    clusters = _render(PerTriangleShadowVolumes, frame, hierarchy="clusters").extra
+    tiles = _render(PerTriangleShadowVolumes, frame, hierarchy="tiles").extra
+    clusters = _render(PerTriangleShadowVolumes, frame).extra
     assert 60_000 < tiles["triangle_tests"] < 76_000
     assert 0 < clusters["triangle_tests"] < tiles["triangle_tests"] / 2
     assert clusters["traversal_nodes"] < tiles["traversal_nodes"]
