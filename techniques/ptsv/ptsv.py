@@ -70,7 +70,7 @@ class PerTriangleShadowVolumes(Technique):
     ==============  ====================================================  =======  ===========
     Parameter       Meaning                                               Default  Range
     ==============  ====================================================  =======  ===========
-    ``hierarchy``   ``clusters``: bounds per screen tile and depth       clusters
+    ``hierarchy``   ``clusters``: bounds per screen tile and depth        clusters
                     slice; ``tiles``: per screen tile (cheaper to
                     build; slower where depth varies within a tile)
     ``tile``        children per node along each axis (a power of two)    2        2 .. 16
