@@ -112,14 +112,20 @@ def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
     GL.glBindTexture(GL.GL_TEXTURE_BUFFER, 0)
 
 
-def _across(light: np.ndarray) -> dict:
-    """``light_u``, ``light_v``: two unit axes across a directional light (zero otherwise)."""
-    if light[3] != 0:
-        return {"light_u": np.zeros(3, np.float32), "light_v": np.zeros(3, np.float32)}
-    d = np.asarray(light[:3], np.float64) / np.linalg.norm(light[:3])
+def _across(light: np.ndarray, axis: np.ndarray, origin: np.ndarray) -> dict:
+    """The uniforms of the volumes' cross-section bounds (ptsv_volume.glsl): ``light_u``,
+    ``light_v``, two unit axes across ``axis``; for a spot or point light (``light`` (position,
+    1)) ``light_axis``, the unit axis, and ``light_point``, the position relative to ``origin``,
+    both zero for a directional light, whose ``light_far`` is 1 (0 otherwise)."""
+    d = np.asarray(axis, np.float64) / np.linalg.norm(axis)
     u = np.cross(d, np.eye(3)[np.argmin(np.abs(d))])
     u /= np.linalg.norm(u)
-    return {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32)}
+    point = light[3] != 0
+    return {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32),
+            "light_axis": (d if point else np.zeros(3)).astype(np.float32),
+            "light_point": (np.asarray(light[:3], np.float64) - origin if point
+                            else np.zeros(3)).astype(np.float32),
+            "light_far": 0.0 if point else 1.0}
 
 
 def _rows(groups: int) -> tuple[int, int]:
@@ -245,21 +251,24 @@ class SampleHierarchy:
             _barrier()
 
     def traverse(self, position: Texture, vertices: int, indices: int, light: np.ndarray,
-                 origin: np.ndarray, tie: float, count: bool = False) -> np.ndarray:
+                 axis: np.ndarray, origin: np.ndarray, tie: float,
+                 count: bool = False) -> np.ndarray:
         """Mark the samples and nodes inside the volumes of the scene's triangles (vertex and
         index buffers of the scene mesh) for ``light`` (homogeneous), positions taken relative
-        to ``origin`` (float32, near the scene). The triangles go in batches (all at once
+        to ``origin`` (float32, near the scene); ``axis``, a direction the light's rays take
+        (ptsv_volume.glsl's cross-section bounds). The triangles go in batches (all at once
         unless a frame needed more room): a batch whose queues overflowed runs again with room
         (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
         once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
         counters (read back), summed over the batches."""
         _zero(self.marks)
+        across = _across(light, axis, np.asarray(origin, np.float64))
         total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
         self.peak = self.batches = start = 0
         while start < self.triangles:
             end = min(start + self.batch, self.triangles)
-            counters = self._traverse_batch(position, vertices, indices, light, origin, tie,
-                                            count, start, end)
+            counters = self._traverse_batch(position, vertices, indices, light, across, origin,
+                                            tie, count, start, end)
             needed = int(counters[COUNT_LEVELS:].max(initial=0))
             volumes = int(counters[0])
             if needed <= self.capacity and volumes <= self.volume_capacity:
@@ -275,7 +284,7 @@ class SampleHierarchy:
                 self.batch = max(1, (end - start) // 2)
         return total
 
-    def _traverse_batch(self, position, vertices, indices, light, origin, tie, count,
+    def _traverse_batch(self, position, vertices, indices, light, across, origin, tie, count,
                         start: int, end: int) -> np.ndarray:
         _zero(self.counters)
         if self.mesh != (vertices, indices):
@@ -288,7 +297,7 @@ class SampleHierarchy:
         self._bind()
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
-        shared = dict(**_across(light), origin=np.asarray(origin, np.float32), tie=float(tie),
+        shared = dict(**across, origin=np.asarray(origin, np.float32), tie=float(tie),
                       capacity=self.capacity, volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()

@@ -44,8 +44,9 @@ class PerTriangleShadowVolumes(Technique):
     point; each triangle turned toward the light, an edge-on one casting none, as sv's
     per-triangle volumes; in a closed part only the triangles facing the light, which shadow
     all that the part does) and tests the root, then descends level by level: a node outside the
-    volume (beyond one of its planes or, for a directional light, beyond its triangle's bounds
-    on two axes across the light) is skipped, one inside is marked shadowed whole, any other
+    volume (beyond one of its planes, or beyond its triangle's bounds on two axes across the
+    light: a directional light's direction, or, after a central projection from a spot or point
+    light, its axis) is skipped, one inside is marked shadowed whole, any other
     has its children tested, down to the samples themselves. Work moves between levels in
     queues of (volume, node) items filled by atomics (one per item's queued children) and
     dispatched indirectly; an invocation tests one item's node's children in a loop, whatever
@@ -144,11 +145,22 @@ class PerTriangleShadowVolumes(Technique):
         return (np.append(-light.direction, 0.0) if light.type == "directional"
                 else np.append(light.position, 1.0))
 
+    @staticmethod
+    def _axis(frame: Frame) -> np.ndarray:
+        """A direction the light's rays take: a directional or spot light's own, a point
+        light's toward the centre of the scene's bounds (the volumes' cross-section bounds are
+        taken across it)."""
+        light = frame.scene.light
+        if light.type != "point":
+            return np.asarray(light.direction, np.float64)
+        toward = frame.scene.bounds.mean(axis=0) - np.asarray(light.position, np.float64)
+        return toward if np.linalg.norm(toward) > 0 else np.array([0.0, 0.0, -1.0])
+
     def _traverse(self, frame: Frame, count: bool = False) -> np.ndarray:
         mesh = frame.geometry
         return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo, mesh.ebo,
-                                       self._light(frame), self._origin(frame), self._tie(frame),
-                                       count)
+                                       self._light(frame), self._axis(frame),
+                                       self._origin(frame), self._tie(frame), count)
 
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy

@@ -61,10 +61,22 @@ void main() {
         bool ordered = index[a] < index[b];
         volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
     }
-    vec3 u = vec3(dot(p[0], light_u), dot(p[1], light_u), dot(p[2], light_u));
-    vec3 v = vec3(dot(p[0], light_v), dot(p[1], light_v), dot(p[2], light_v));
-    volume[4] = vec4(min(min(u.x, u.y), u.z) - tie, max(max(u.x, u.y), u.z) + tie,
-                     min(min(v.x, v.y), v.z) - tie, max(max(v.x, v.y), v.z) + tie);
+    // the cross-section bounds (ptsv_volume.glsl), widened for rounding: by `tie` across a
+    // directional light, by 2^-20 of the largest coordinate (and of 1) after a projection
+    vec3 u, v, depth;
+    for (int k = 0; k < 3; ++k) {
+        vec3 d = p[k] - light_point;
+        depth[k] = dot(light_axis, d) + light_far;
+        u[k] = dot(light_u, d) / depth[k];
+        v[k] = dot(light_v, d) / depth[k];
+    }
+    float widen = tie + (1.0 - light_far) * (1.0 + max(max(max(abs(u.x), abs(u.y)), abs(u.z)),
+                                                       max(max(abs(v.x), abs(v.y)), abs(v.z))))
+                                          * (1.0 / 1048576.0);
+    volume[4] = all(greaterThan(depth, vec3(0.0)))
+        ? vec4(min(min(u.x, u.y), u.z) - widen, max(max(u.x, u.y), u.z) + widen,
+               min(min(v.x, v.y), v.z) - widen, max(max(v.x, v.y), v.z) + widen)
+        : vec4(1.0, -1.0, 1.0, -1.0);  // behind or beside the light along the axis: no bounds
     TALLY(COUNT_NODE_TESTS);
     vec3 lo, hi;
     node_box(root, lo, hi);

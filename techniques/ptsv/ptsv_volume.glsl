@@ -30,10 +30,18 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 #define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
 
 uniform vec3 origin;
-// Directional light: two unit axes across its direction (zero for a spot or point light), on
-// which a volume's cross-section lies within its triangle's bounds (the volume's last row).
+// A volume's cross-section lies within its triangle's bounds on two unit axes across the
+// light's (the volume's last row, set up in ptsv_setup.comp.glsl): a point x's coordinates are
+// (u . d, v . d) / (axis . d + far), d = x - light_point: for a directional light (axis and
+// light_point zero, far 1) its coordinates across the light's direction; for a spot or point
+// light its central projection from the light onto the plane one unit along the axis (the
+// spot's direction, a point light's toward the scene), taken only for a triangle wholly in
+// front of the light along the axis (any other has no bounds: min > max).
 uniform vec3 light_u;
 uniform vec3 light_v;
+uniform vec3 light_axis;
+uniform vec3 light_point;
+uniform float light_far;
 #define VOLUME_ROWS 5  // vec4 per volume: its four planes, then (u min, u max, v min, v max)
 uniform float tie;  // how far behind its own plane a point must be to be shadowed
 uniform uint capacity;  // items per queue region
@@ -63,15 +71,26 @@ bool inside_edge(vec4 plane, vec3 p) {
 // -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
 // wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
 // edge plane counts as partly, so the samples there meet the tie-break above).
+// Whether the box (centre c, half extent e) lies wholly beyond the bound `limit` of the
+// coordinate along `across`, on the side `sign` (1: above): n . (x - light_point) + sign *
+// limit * far > 0 for every x in the box, n = sign * (across - limit * axis), by more than
+// the float rounding of evaluating it (2^-19 of the sum of its terms' magnitudes).
+bool beyond(vec3 c, vec3 e, vec3 across, float limit, float sign) {
+    vec3 n = sign * (across - limit * light_axis);
+    vec3 d = c - light_point;
+    float nearest = dot(n, d) - dot(abs(n), e) - sign * limit * light_far;
+    return nearest > (dot(abs(n), abs(d) + e) + abs(limit) * light_far) * (1.0 / 524288.0);
+}
+
 int classify(vec4 volume[VOLUME_ROWS], vec3 lo, vec3 hi) {
-    // outside the triangle's bounds across a directional light (widened by `tie` for rounding;
-    // for other lights the bounds hold every box): a box the edge planes do not separate, e.g.
-    // beyond a corner of the triangle
+    // outside the triangle's bounds across the light: a box the edge planes do not separate,
+    // e.g. beyond a corner of the triangle
     vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
-    float cu = dot(c, light_u), eu = dot(e, abs(light_u));
-    float cv = dot(c, light_v), ev = dot(e, abs(light_v));
     vec4 bounds = volume[4];
-    if (cu - eu > bounds.y || cu + eu < bounds.x || cv - ev > bounds.w || cv + ev < bounds.z) return -1;
+    if (bounds.x <= bounds.y && (beyond(c, e, light_u, bounds.y, 1.0)
+                                 || beyond(c, e, light_u, bounds.x, -1.0)
+                                 || beyond(c, e, light_v, bounds.w, 1.0)
+                                 || beyond(c, e, light_v, bounds.z, -1.0))) return -1;
     bool inside = true;
     for (int k = 0; k < 4; ++k) {
         vec4 plane = volume[k];
