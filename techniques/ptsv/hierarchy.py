@@ -115,17 +115,16 @@ def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
 def _across(light: np.ndarray, axis: np.ndarray, origin: np.ndarray) -> dict:
     """The uniforms of the volumes' cross-section bounds (ptsv_volume.glsl): ``light_u``,
     ``light_v``, two unit axes across ``axis``; for a spot or point light (``light`` (position,
-    1)) ``light_axis``, the unit axis, and ``light_point``, the position relative to ``origin``,
-    both zero for a directional light, whose ``light_far`` is 1 (0 otherwise)."""
+    1)) also ``light_axis``, the unit axis, and ``light_point``, the position relative to
+    ``origin``."""
     d = np.asarray(axis, np.float64) / np.linalg.norm(axis)
     u = np.cross(d, np.eye(3)[np.argmin(np.abs(d))])
     u /= np.linalg.norm(u)
-    point = light[3] != 0
-    return {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32),
-            "light_axis": (d if point else np.zeros(3)).astype(np.float32),
-            "light_point": (np.asarray(light[:3], np.float64) - origin if point
-                            else np.zeros(3)).astype(np.float32),
-            "light_far": 0.0 if point else 1.0}
+    out = {"light_u": u.astype(np.float32), "light_v": np.cross(d, u).astype(np.float32)}
+    if light[3] != 0:
+        out.update(light_axis=d.astype(np.float32),
+                   light_point=(np.asarray(light[:3], np.float64) - origin).astype(np.float32))
+    return out
 
 
 def _rows(groups: int) -> tuple[int, int]:
@@ -135,11 +134,12 @@ def _rows(groups: int) -> tuple[int, int]:
 
 
 class SampleHierarchy:
-    """Buffers and programs for one image size, tile, mask divisor and number of depth slices
-    (1: tiles)."""
+    """Buffers and programs for one image size, tile, mask divisor, number of depth slices
+    (1: tiles) and kind of light (``positional``: a spot or point light, whose programs are
+    compiled with POSITIONAL_LIGHT)."""
 
     def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray,
-                 slices: int = 1):
+                 slices: int = 1, positional: bool = False):
         triangles = len(closed_side)
         self.divisor, self.tile, self.triangles, self.slices = divisor, tile, triangles, slices
         self.sizes = level_sizes(-(-width // divisor), -(-height // divisor), tile)
@@ -151,7 +151,8 @@ class SampleHierarchy:
         self.root = self.node_first[self.levels] if slices == 1 else self.node_first[-1]
         self.nodes = self.root + 1
         self.items_per_group = 64  # the traversal's: one invocation per queued item
-        defines = {"TILE": tile, "GROUP_SIZE": self.items_per_group, "EDGE_ON": repr(EDGE_ON)}
+        defines = {"TILE": tile, "GROUP_SIZE": self.items_per_group, "EDGE_ON": repr(EDGE_ON),
+                   **({"POSITIONAL_LIGHT": 1} if positional else {})}
 
         def program(name, **more):
             return ComputeProgram(HERE / name, {**defines, **more})

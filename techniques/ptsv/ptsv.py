@@ -113,7 +113,8 @@ class PerTriangleShadowVolumes(Technique):
         sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
                              scene.edges.closed)
         self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides,
-                                         p.slices if p.hierarchy == "clusters" else 1)
+                                         p.slices if p.hierarchy == "clusters" else 1,
+                                         positional=scene.light.positional)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
                                               "ptsv_visibility.frag.glsl", TILE=p.tile)
         self.counted_for = None

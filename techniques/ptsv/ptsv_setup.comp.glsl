@@ -63,16 +63,22 @@ void main() {
     }
     // the cross-section bounds (ptsv_volume.glsl), widened for rounding: by `tie` across a
     // directional light, by 2^-20 of the largest coordinate (and of 1) after a projection
-    vec3 u, v, depth;
+    vec3 u, v, depth = vec3(1.0);
     for (int k = 0; k < 3; ++k) {
+#ifdef POSITIONAL_LIGHT
         vec3 d = p[k] - light_point;
-        depth[k] = dot(light_axis, d) + light_far;
+        depth[k] = dot(light_axis, d);
+#else
+        vec3 d = p[k];
+#endif
         u[k] = dot(light_u, d) / depth[k];
         v[k] = dot(light_v, d) / depth[k];
     }
-    float widen = tie + (1.0 - light_far) * (1.0 + max(max(max(abs(u.x), abs(u.y)), abs(u.z)),
-                                                       max(max(abs(v.x), abs(v.y)), abs(v.z))))
-                                          * (1.0 / 1048576.0);
+    float widen = tie;
+#ifdef POSITIONAL_LIGHT
+    widen += (1.0 + max(max(max(abs(u.x), abs(u.y)), abs(u.z)),
+                        max(max(abs(v.x), abs(v.y)), abs(v.z)))) * (1.0 / 1048576.0);
+#endif
     volume[4] = all(greaterThan(depth, vec3(0.0)))
         ? vec4(min(min(u.x, u.y), u.z) - widen, max(max(u.x, u.y), u.z) + widen,
                min(min(v.x, v.y), v.z) - widen, max(max(v.x, v.y), v.z) + widen)

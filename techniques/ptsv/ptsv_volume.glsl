@@ -32,16 +32,18 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 uniform vec3 origin;
 // A volume's cross-section lies within its triangle's bounds on two unit axes across the
 // light's (the volume's last row, set up in ptsv_setup.comp.glsl): a point x's coordinates are
-// (u . d, v . d) / (axis . d + far), d = x - light_point: for a directional light (axis and
-// light_point zero, far 1) its coordinates across the light's direction; for a spot or point
-// light its central projection from the light onto the plane one unit along the axis (the
-// spot's direction, a point light's toward the scene), taken only for a triangle wholly in
-// front of the light along the axis (any other has no bounds: min > max).
+// (u . x, v . x) across a directional light's direction; with POSITIONAL_LIGHT (a spot or
+// point light, compiled apart: llvmpipe runs both sides of a branch)
+// (u . d, v . d) / (axis . d), d = x - light_point, its central projection from the light onto
+// the plane one unit along the axis (the spot's direction, a point light's toward the scene),
+// taken only for a triangle wholly in front of the light along the axis (any other has no
+// bounds: min > max).
 uniform vec3 light_u;
 uniform vec3 light_v;
+#ifdef POSITIONAL_LIGHT
 uniform vec3 light_axis;
-uniform vec3 light_point;
-uniform float light_far;
+uniform vec3 light_point;  // relative to `origin`
+#endif
 #define VOLUME_ROWS 5  // vec4 per volume: its four planes, then (u min, u max, v min, v max)
 uniform float tie;  // how far behind its own plane a point must be to be shadowed
 uniform uint capacity;  // items per queue region
@@ -68,29 +70,40 @@ bool inside_edge(vec4 plane, vec3 p) {
     return n.x != 0.0 ? n.x < 0.0 : (n.y != 0.0 ? n.y < 0.0 : n.z < 0.0);
 }
 
-// -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
-// wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
-// edge plane counts as partly, so the samples there meet the tie-break above).
+#ifdef POSITIONAL_LIGHT
 // Whether the box (centre c, half extent e) lies wholly beyond the bound `limit` of the
-// coordinate along `across`, on the side `sign` (1: above): n . (x - light_point) + sign *
-// limit * far > 0 for every x in the box, n = sign * (across - limit * axis), by more than
-// the float rounding of evaluating it (2^-19 of the sum of its terms' magnitudes).
+// coordinate along `across`, on the side `sign` (1: above): n . (x - light_point) > 0 for
+// every x in the box, n = sign * (across - limit * axis), by more than the float rounding of
+// evaluating it (2^-19 of the sum of its terms' magnitudes).
 bool beyond(vec3 c, vec3 e, vec3 across, float limit, float sign) {
     vec3 n = sign * (across - limit * light_axis);
     vec3 d = c - light_point;
-    float nearest = dot(n, d) - dot(abs(n), e) - sign * limit * light_far;
-    return nearest > (dot(abs(n), abs(d) + e) + abs(limit) * light_far) * (1.0 / 524288.0);
+    return dot(n, d) - dot(abs(n), e) > dot(abs(n), abs(d) + e) * (1.0 / 524288.0);
 }
 
+bool outside_bounds(vec4 bounds, vec3 c, vec3 e) {
+    return bounds.x <= bounds.y && (beyond(c, e, light_u, bounds.y, 1.0)
+                                    || beyond(c, e, light_u, bounds.x, -1.0)
+                                    || beyond(c, e, light_v, bounds.w, 1.0)
+                                    || beyond(c, e, light_v, bounds.z, -1.0));
+}
+#else
+// (the bounds widened by `tie` for rounding when set up)
+bool outside_bounds(vec4 bounds, vec3 c, vec3 e) {
+    float cu = dot(c, light_u), eu = dot(e, abs(light_u));
+    float cv = dot(c, light_v), ev = dot(e, abs(light_v));
+    return cu - eu > bounds.y || cu + eu < bounds.x || cv - ev > bounds.w || cv + ev < bounds.z;
+}
+#endif
+
+// -1: the box [lo, hi] lies outside the volume (wholly behind the tie for the triangle's plane,
+// wholly on the positive side of an edge plane); 1: wholly inside; 0: partly (a corner on an
+// edge plane counts as partly, so the samples there meet the tie-break above).
 int classify(vec4 volume[VOLUME_ROWS], vec3 lo, vec3 hi) {
     // outside the triangle's bounds across the light: a box the edge planes do not separate,
     // e.g. beyond a corner of the triangle
     vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
-    vec4 bounds = volume[4];
-    if (bounds.x <= bounds.y && (beyond(c, e, light_u, bounds.y, 1.0)
-                                 || beyond(c, e, light_u, bounds.x, -1.0)
-                                 || beyond(c, e, light_v, bounds.w, 1.0)
-                                 || beyond(c, e, light_v, bounds.z, -1.0))) return -1;
+    if (outside_bounds(volume[4], c, e)) return -1;
     bool inside = true;
     for (int k = 0; k < 4; ++k) {
         vec4 plane = volume[k];
