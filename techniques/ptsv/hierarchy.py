@@ -188,7 +188,6 @@ class SampleHierarchy:
         self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
                    max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
         self.batch = triangles  # triangles per traversal batch, halved while queues overflow
-        self.mesh = None  # the (vertex, index) buffers vertex_texels and index_texels read
 
     @property
     def mem_bytes(self) -> int:
@@ -288,13 +287,12 @@ class SampleHierarchy:
     def _traverse_batch(self, position, vertices, indices, light, across, origin, tie, count,
                         start: int, end: int) -> np.ndarray:
         _zero(self.counters)
-        if self.mesh != (vertices, indices):
-            self.mesh = (vertices, indices)
-            for name, buffer in (("vertex_texels", vertices), ("index_texels", indices)):
-                GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
-                nbytes = int(GL.glGetBufferParameteriv(GL.GL_TEXTURE_BUFFER, GL.GL_BUFFER_SIZE))
-                GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
-                _texels(self.textures[name], name, buffer, nbytes)
+        # attached every batch: a moved scene's mesh is new buffers, maybe under the old names
+        for name, buffer in (("vertex_texels", vertices), ("index_texels", indices)):
+            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
+            nbytes = int(GL.glGetBufferParameteriv(GL.GL_TEXTURE_BUFFER, GL.GL_BUFFER_SIZE))
+            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+            _texels(self.textures[name], name, buffer, nbytes)
         self._bind()
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
