@@ -170,6 +170,13 @@ def score_run(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
         return _score_row(timed, frame, reference)
 
 
+def _complete(row: dict) -> None:
+    """A scored row's last columns: the GPU estimate, priced once the technique's own columns
+    (its traversal counts among them) are in the row, and the status."""
+    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)
+    row["status"] = "ok"
+
+
 def _score_row(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     row, output = timed.row, timed.output
     row.update(_cost_columns(timed, frame))
@@ -177,8 +184,7 @@ def _score_row(timed, frame, reference) -> tuple[dict, dict[str, np.ndarray]]:
     columns, images = _metric_columns(_clean(output.visibility), frame, truth)
     row.update(columns)
     row.update(output.extra)
-    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)  # with the technique's traversal counts
-    row["status"] = "ok"
+    _complete(row)
     return row, _frame_arrays(output, frame, truth, images)
 
 
@@ -311,8 +317,7 @@ def _sequence_row(timed, frame) -> tuple[dict, dict[str, np.ndarray]]:
             row[name] = float(np.mean(series[f"extra_{name}"]))
         else:
             row[name] = values[-1]
-    row["gpu_estimate_ms"] = cost_model.estimate_ms(row)  # with the technique's traversal counts
-    row["status"] = "ok"
+    _complete(row)
     strip_frames, strip_v, strip_ref, strip_covered = zip(*sequence.strip)
     arrays = {**sequence.first, **sequence.worst,
               **{f"series_{name}": values for name, values in series.items()},
