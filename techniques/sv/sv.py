@@ -92,15 +92,19 @@ class ShadowVolumes(Technique):
     volume's clip polygons between its increments and its decrements. The normalisation
     rectangles and the visibility pass shade covered pixels only.
 
-    ``cull: cc`` (Lloyd, Wendt, Govindaraju, Manocha 2004, "CC shadow volumes") spends one more
-    timed pass, ``receivers``, on a light-space grid of the G-buffer's samples (each cell's
-    deepest receiver along the light, and its max pyramid: ``sv_cull``); the geometry shader
-    then culls every per-triangle volume with no receiver beyond its triangle in the cells its
-    footprint touches. The test is conservative: V is the same as with ``none``, only fill and
-    time change. Lloyd et al.'s clamping of the remaining volumes is left out: it moved V at
-    tie pixels (see ``sv_cull``). It applies to a directional light's per-triangle volumes
-    (open parts, or all with ``volumes: polygon``); silhouette volumes, and every volume of a
-    spot or point light, are drawn as with ``none``.
+    ``cull: cull`` and ``cull: cc`` (Lloyd, Wendt, Govindaraju, Manocha 2004, "CC shadow
+    volumes") spend one more timed pass, ``receivers``, on a light-space grid of the G-buffer's
+    samples (each cell's deepest receiver along the light, and its max pyramid: ``sv_cull``);
+    the geometry shader then culls every per-triangle volume with no receiver beyond its
+    triangle in the cells its footprint touches. ``cc`` also clamps the rest to the light
+    depths from the triangle's nearest corner to that deepest receiver, per fragment (the
+    rasterised volume stays: a clamped far edge rasterises otherwise and moved V at tie
+    pixels), with a full mask only. Both are conservative: V is the same as with ``none``,
+    only fill and time change; the clamp lowers the fill that reaches the count, not the
+    rasterised area, and costs a texel fetch a fragment (``sv_cull`` says more). They apply to
+    a directional light's per-triangle volumes (open parts, or all with ``volumes:
+    polygon``); silhouette volumes, and every volume of a spot or point light, are drawn as
+    with ``none``.
 
     Volume fragments are counted untimed, with the depth test off, whenever the light, the
     camera or an object moved (once on a still scene): they are the row's
@@ -119,9 +123,11 @@ class ShadowVolumes(Technique):
                      ``max`` (1, section 4.4)
     ``volumes``      ``auto``, ``silhouette`` (one per closed mesh, even    auto
                      non-convex) or ``polygon`` (one per triangle)
-    ``cull``         ``none`` or ``cc`` (Lloyd et al. 2004: per-triangle       none
-                     volumes that reach no visible receiver culled;
-                     directional light; not with nearclip)
+    ``cull``         ``none``; ``cull``: per-triangle volumes that reach    none
+                     no visible receiver culled; ``cc``: culled, the rest
+                     clamped to their receivers' light depths (Lloyd et
+                     al. 2004; full mask). Directional light; not with
+                     nearclip
     ===============  =====================================================  ==========  =====
     """
 
@@ -144,13 +150,13 @@ class ShadowVolumes(Technique):
         mask_res: Literal["full", "half", "quarter"] = "full"
         normalize: Literal["rectangles", "max"] = "rectangles"
         volumes: Literal["auto", "silhouette", "polygon"] = "auto"
-        cull: Literal["none", "cc"] = "none"
+        cull: Literal["none", "cull", "cc"] = "none"
 
         @model_validator(mode="after")
         def _cull_needs_gpu_volumes(self):
-            if self.cull == "cc" and self.method == "nearclip":
-                raise ValueError("cull: cc needs method zpass or zfail (nearclip draws each "
-                                 "volume's near-plane clip polygon apart from the volume)")
+            if self.cull != "none" and self.method == "nearclip":
+                raise ValueError(f"cull: {self.cull} needs method zpass or zfail (nearclip "
+                                 "draws each volume's near-plane clip polygon apart from it)")
             return self
 
     def prepare(self, frame: Frame) -> None:
@@ -159,14 +165,16 @@ class ShadowVolumes(Technique):
         self.meshes = sv_volumes.clean_parts(frame.scene.parts)
         nested = p.buffer == "stencil" or p.normalize == "max"
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
+        divisor = MASK_DIVISOR[p.mask_res]
+        self.shares_scene_depth = divisor == 1
+        # the clamp needs each mask pixel's receiver: the G-buffer's, at its resolution only
+        self.receivers = (ReceiverGrid(clamp=p.cull == "cc" and self.shares_scene_depth)
+                          if p.cull != "none" else None)
         self.volumes, self.near_clip = self._volume_geometry(frame)
-        self.receivers = ReceiverGrid() if p.cull == "cc" else None
         self.receiver_uniforms = False  # whether the volume pass culls by a grid built
         # what the diagnostics were last counted for
         self.view_proj = None  # the frame's camera, set by render
         self.counted_for = None  # the light, camera and poses the diagnostics are of
-        divisor = MASK_DIVISOR[p.mask_res]
-        self.shares_scene_depth = divisor == 1
         self.mask = Framebuffer(-(-frame.width // divisor), -(-frame.height // divisor),
                                 (GL.GL_RGBA8,), depth=not self.shares_scene_depth)
         if self.shares_scene_depth:
@@ -188,7 +196,8 @@ class ShadowVolumes(Technique):
                              self.single, caps=p.method == "zfail",
                              increments_first=p.buffer != "stencil",
                              nested_counts=p.buffer == "stencil" or p.normalize == "max",
-                             cull=p.cull == "cc")
+                             cull=p.cull != "none", clamp=self.receivers is not None
+                             and self.receivers.clamp)
         near_clip = (sv_cpu.NearClipPolygons(self.meshes, self.single)
                      if p.method == "nearclip" else None)
         return volumes, near_clip

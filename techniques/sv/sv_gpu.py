@@ -117,7 +117,8 @@ class GpuVolumes:
     volume, convex wherever that order matters: drawn twice, culled one way then the other)."""
 
     def __init__(self, names: list[str], meshes: list[CleanMesh], single: list[bool], *,
-                 caps: bool, increments_first: bool, nested_counts: bool, cull: bool = False):
+                 caps: bool, increments_first: bool, nested_counts: bool, cull: bool = False,
+                 clamp: bool = False):
         self.caps, self.increments_first = caps, increments_first
         self.names, self.meshes, self.single = names, meshes, single
         self.nested_counts = nested_counts
@@ -136,8 +137,12 @@ class GpuVolumes:
         self.polygon_ranges = _ranges([3 * len(m.faces) for m in open_])
         self.edge_program = _program("sv_edge.vert.glsl")
         self.cap_program = _program("sv_cap.vert.glsl")
-        # cull: cc reads the receivers' grid in the per-triangle volumes' geometry shader
+        # cull reads the receivers' grid in the per-triangle volumes' geometry shader; the
+        # clamp, their light depths in the fragment shader (compiled apart: llvmpipe would
+        # fetch them, even where a uniform turned the test off)
         culling = {"CULL": 1, "GRID_SIZE": sv_cull.GRID} if cull else {}
+        if clamp:
+            culling["CLAMP"] = 1
         self.polygon_program = _program("sv_polygon.vert.glsl", "sv_polygon.geom.glsl",
                                         EDGE_ON=repr(sv_volumes.DEGENERATE), **culling)
         self.programs = (self.edge_program, self.cap_program, self.polygon_program)

@@ -7,13 +7,19 @@
 // in primitive order, so volume by volume.
 #include "sv_extrude.glsl"
 #ifdef CULL
-// cull: cc (Lloyd et al. 2004), directional light: a volume with no visible receiver beyond its
+// cull (Lloyd et al. 2004), directional light: a volume with no visible receiver beyond its
 // triangle (by more than receiver_margin of light depth) in the cells of the triangle's
-// light-space footprint is culled. Its sides are not clamped: a finite far edge rasterises
-// otherwise than the edge to infinity, which moved V at tie pixels (sv_cull.py).
+// light-space footprint is culled. With CLAMP (cull: cc) every other volume is clamped to the
+// light depths from its triangle's nearest corner to the deepest receiver in those cells (each
+// widened by the margin), per fragment (sv_volume.frag.glsl): its geometry stays, since a
+// finite far edge rasterises otherwise than the edge to infinity and moved V at tie pixels
+// (sv_cull.py).
 #include "sv_receivers.glsl"
 uniform bool cull_on;  // a directional light and a built grid
 uniform float receiver_margin;
+#endif
+#ifdef CLAMP
+flat out vec2 receiver_depths;  // the clamp: light depths a receiver of this volume lies between
 #endif
 
 layout(triangles) in;
@@ -39,11 +45,15 @@ void main() {
     vec3 p[3] = vec3[3](corner_position[0], corner_position[away ? 2 : 1],
                         corner_position[away ? 1 : 2]);
 #ifdef CULL
+    vec2 depths = vec2(-uintBitsToFloat(0x7f800000u), uintBitsToFloat(0x7f800000u));
     if (cull_on) {
         vec3 l[3];
         for (int k = 0; k < 3; ++k) l[k] = light_basis * (model * vec4(p[k], 1.0)).xyz;
         vec2 lo = min(min(l[0].xy, l[1].xy), l[2].xy), hi = max(max(l[0].xy, l[1].xy), l[2].xy);
-        if (deepest_receiver(lo, hi) < min(min(l[0].z, l[1].z), l[2].z) - receiver_margin) return;
+        float nearest = min(min(l[0].z, l[1].z), l[2].z) - receiver_margin;
+        float deepest = deepest_receiver(lo, hi);
+        if (deepest < nearest) return;
+        depths = vec2(nearest, deepest + receiver_margin);
     }
 #endif
     vec4 near[3], far[3];
@@ -70,6 +80,9 @@ void main() {
             if (increments_first && increments != (round == 0)) continue;
             for (int j = 0; j < 3; ++j) {
                 gl_Position = faces[i][j];
+#ifdef CLAMP
+                receiver_depths = depths;  // outputs are undefined after each emit
+#endif
                 EmitVertex();
             }
             EndPrimitive();

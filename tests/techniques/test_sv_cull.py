@@ -1,10 +1,20 @@
-"""sv's ``cull: cc`` (issue 37; Lloyd et al. 2004): V bit-equal to ``cull: none`` on every
-shipped scene and hard case, with fewer volume fragments (frags_shadow) on a scale scene.
+"""sv's ``cull: cull`` and ``cull: cc`` (issue 37; Lloyd et al. 2004): V bit-equal to
+``cull: none`` on every shipped scene and hard case, with fewer volume fragments
+(frags_shadow) on a scale scene, fewer still with the clamp.
 
-Broken version the tests were run against once (and failed): a cull that is not conservative
-(a volume culled when the deepest receiver in its footprint lies short of the triangle's
-deepest corner instead of its nearest): test_cc_leaves_v_unchanged fails on
-hard_dueling_frusta (5,747 pixels), test_cc_lowers_fill_on_a_scale_scene on its factor.
+Broken versions the tests were run against once (and failed):
+- a cull that is not conservative (a volume culled when the deepest receiver in its footprint
+  lies short of the triangle's deepest corner instead of its nearest):
+  test_cull_leaves_v_unchanged fails on hard_dueling_frusta (5,747 pixels),
+  test_cull_lowers_fill_on_a_scale_scene on its factor;
+- a clamp from the triangle's deepest corner instead of its nearest: fails on pins (34
+  pixels), castle (689), crowd, terrain_long, silhouette_hard, camera_in_shadow, jeep,
+  real_airplane, real_plates and hard_dueling_frusta (5,747);
+- a clamp short of the deepest receiver by the margin instead of beyond it: fails on crowd
+  (5 pixels), terrain_long (1), slant_edge (828) and real_plates (1);
+- the clamp at a half mask (G-buffer samples taken for the mask's receivers):
+  test_clamp_needs_a_full_mask fails on V;
+- cull as any string: test_bad_cull_exits_2 fails on the unknown value.
 """
 
 import numpy as np
@@ -24,7 +34,8 @@ SCENES = [(SCENE_FILE, name) for name, scene in config.load_scenes(SCENE_FILE).i
 # everywhere, and the state machine counting z-pass in the alpha channel
 SETTINGS = [{}, {"volumes": "polygon"}, {"buffer": "alpha", "method": "zpass"}]
 FAMILY = "architecture"
-FILL_FACTOR = 1.0639  # measured; foliage at 10^4: 1.00
+# frags_shadow with none / with each (measured at 128 x 128); foliage at 10^4: 1.00 and 1.40
+FILL_FACTOR = {"cull": 1.0639, "cc": 2.7202}
 
 
 def _render(frame: Frame, **params):
@@ -33,34 +44,73 @@ def _render(frame: Frame, **params):
 
 
 @pytest.mark.parametrize("path,name", SCENES, ids=[n for _, n in SCENES])
-def test_cc_leaves_v_unchanged(gl_context, path, name):
+def test_cull_leaves_v_unchanged(gl_context, path, name):
     frame = Frame(load_scene(name, path).with_resolution(RES, RES))
     try:
         for setting in SETTINGS:
             none = _render(frame, **setting)
-            cc = _render(frame, cull="cc", **setting)
-            assert np.array_equal(none.visibility, cc.visibility), (
-                f"{name} {setting}: {int((none.visibility != cc.visibility).sum())} pixels")
-            assert cc.shadow_fragments <= none.shadow_fragments
+            fragments = none.shadow_fragments
+            for cull in ("cull", "cc"):
+                culled = _render(frame, cull=cull, **setting)
+                assert np.array_equal(none.visibility, culled.visibility), (
+                    f"{name} {setting} {cull}: "
+                    f"{int((none.visibility != culled.visibility).sum())} pixels")
+                assert culled.shadow_fragments <= fragments  # the clamp only takes more away
+                fragments = culled.shadow_fragments
     finally:
         frame.release()
 
 
-def test_cc_lowers_fill_on_a_scale_scene(gl_context):
+@pytest.mark.parametrize("cull", FILL_FACTOR)
+def test_cull_lowers_fill_on_a_scale_scene(gl_context, cull):
     """architecture at 10^4 triangles (open parts: per-triangle volumes), 128 x 128: the fill
-    falls by the factor measured (6%: the ground lies under nearly every caster, so few
-    volumes reach no receiver), V the same."""
+    falls by the factor measured (culled only 6%: the ground lies under nearly every caster,
+    so few volumes reach no receiver; clamped 2.7x: a volume's fragments whose receiver lies
+    beyond the deepest one under its triangle, or nearer the light than it, are dropped), V
+    the same."""
     scene = config.load_scenes(SCENE_FILE)[FAMILY].at_triangles(10_000)
     frame = Frame(build_scene(FAMILY, scene, SCENE_FILE).with_resolution(128, 128))
     try:
-        none, cc = _render(frame), _render(frame, cull="cc")
-        assert np.array_equal(none.visibility, cc.visibility)
-        factor = none.shadow_fragments / cc.shadow_fragments
-        assert factor == pytest.approx(FILL_FACTOR, rel=0.01), factor
+        none, culled = _render(frame), _render(frame, cull=cull)
+        assert np.array_equal(none.visibility, culled.visibility)
+        factor = none.shadow_fragments / culled.shadow_fragments
+        assert factor == pytest.approx(FILL_FACTOR[cull], rel=0.01), factor
     finally:
         frame.release()
 
 
-def test_cc_refused_with_nearclip():
-    with pytest.raises(ValueError, match="cull: cc needs method zpass or zfail"):
-        ShadowVolumes.Params(cull="cc", method="nearclip")
+def test_clamp_needs_a_full_mask(gl_context):
+    """At half the G-buffer's resolution a mask pixel's receiver is no G-buffer sample: cc
+    culls only, with the fill (and V) of cull."""
+    scene = config.load_scenes(SCENE_FILE)[FAMILY].at_triangles(10_000)
+    frame = Frame(build_scene(FAMILY, scene, SCENE_FILE).with_resolution(128, 128))
+    try:
+        culled, cc = (_render(frame, cull=cull, mask_res="half") for cull in ("cull", "cc"))
+        assert np.array_equal(culled.visibility, cc.visibility)
+        assert cc.shadow_fragments == culled.shadow_fragments
+    finally:
+        frame.release()
+
+
+@pytest.mark.parametrize("cull", FILL_FACTOR)
+def test_cull_refused_with_nearclip(cull):
+    with pytest.raises(ValueError, match=f"cull: {cull} needs method zpass or zfail"):
+        ShadowVolumes.Params(cull=cull, method="nearclip")
+
+
+@pytest.mark.parametrize("setting,message", [
+    ("{cull: clamp}", "sv.cull: Input should be 'none', 'cull' or 'cc'"),
+    ("{cull: cc, method: nearclip}", "cull: cc needs method zpass or zfail"),
+])
+def test_bad_cull_exits_2(tmp_path, capsys, setting, message):
+    """An unknown cull, or one with nearclip: exit 2, one line naming the file and the key,
+    nothing written."""
+    from harness import cli
+
+    experiment = tmp_path / "bad.yaml"
+    experiment.write_text(f"scenes: [box_plane]\ntechniques:\n  sv: [{{set: {setting}}}]\n")
+    out = tmp_path / "out"
+    assert cli.main(["run", str(experiment), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert str(experiment) in err and message in err and len(err.splitlines()) == 1
+    assert not out.exists()
