@@ -19,7 +19,7 @@ Broken versions the tests were run against once (and failed):
 
 import numpy as np
 import pytest
-from helpers import ROOT, SCENE_FILE, render_once
+from helpers import ROOT, SCENE_FILE, render_once, render_visibility
 
 from harness import config
 from harness.scene import build_scene, load_scene
@@ -89,6 +89,44 @@ def test_clamp_needs_a_full_mask(gl_context):
         assert np.array_equal(culled.visibility, cc.visibility)
         assert cc.shadow_fragments == culled.shadow_fragments
     finally:
+        frame.release()
+
+
+def test_cull_follows_a_moving_caster(gl_context):
+    """An open caster (a plate) orbited a quarter turn over 3 frames, from beside the ground to
+    above it, each triangle's volume culled and clamped in world space from its part's pose:
+    V at each frame equals cull: none's there, and the plate's shadow has come onto the ground
+    by frame 2 (3, 28, 52 shadowed pixels). Broken version run against it once: the corners
+    taken in the part's own space (no model transform) for the cull and the clamp: V differs
+    at frame 1 (6 pixels) and at frame 2 the shadow is lost (all 52: the volumes are culled
+    where the plate was, with no ground under it)."""
+    data = {"resolution": [96, 72],
+            "camera": {"position": [0, -6, 4], "target": [0, 0, 0], "up": [0, 0, 1]},
+            "light": {"type": "directional", "direction": [-0.3, 0.2, -1]},
+            "objects": [{"shape": "plane", "size": [3, 3], "translate": [-0.5, 2, 0]},
+                        {"shape": "plane", "name": "caster", "size": [1.5, 1.5],
+                         "translate": [2, 0, 1.5]}],
+            "motion": {"frames": 3, "objects": [{"object": "caster", "spin": 90, "orbit": 90,
+                                                 "centre": [0, 0, 0]}]}}
+    frame = Frame(build_scene("moving_plate", config.Scene(**data)))
+    techniques = [ShadowVolumes(ShadowVolumes.Params(cull=cull)) for cull in ("none", "cc")]
+    try:
+        seen = []
+        for t in range(3):
+            if t:
+                frame.move_to(t)
+            views = []
+            for technique in techniques:
+                if t == 0:
+                    technique.prepare(frame)
+                technique.update(frame)
+                views.append(render_visibility(technique, frame))
+            assert np.array_equal(*views), f"frame {t}: {int((views[0] != views[1]).sum())} px"
+            seen.append(views[0])
+        assert np.count_nonzero(seen[2] < 1) > np.count_nonzero(seen[0] < 1) + 20
+    finally:
+        for technique in techniques:
+            technique.release()
         frame.release()
 
 
