@@ -99,7 +99,7 @@ class ShadowVolumes(Technique):
     triangle in the cells its footprint touches. ``cc`` also clamps the rest to the light
     depths from the triangle's nearest corner to that deepest receiver, per fragment (the
     rasterised volume stays: a clamped far edge rasterises otherwise and moved V at tie
-    pixels), with a full mask only. Both are conservative: V is the same as with ``none``,
+    pixels), with a full mask and z-fail only. Both are conservative: V is the same as with ``none``,
     only fill and time change; the clamp lowers the fill that reaches the count, not the
     rasterised area, and costs a texel fetch a fragment (``sv_cull`` says more). They apply to
     a directional light's per-triangle volumes (open parts, or all with ``volumes:
@@ -126,8 +126,8 @@ class ShadowVolumes(Technique):
     ``cull``         ``none``; ``cull``: per-triangle volumes that reach    none
                      no visible receiver culled; ``cc``: culled, the rest
                      clamped to their receivers' light depths (Lloyd et
-                     al. 2004; full mask). Directional light; not with
-                     nearclip
+                     al. 2004; full mask, zfail). Directional light; not
+                     with nearclip
     ===============  =====================================================  ==========  =====
     """
 
@@ -167,9 +167,11 @@ class ShadowVolumes(Technique):
         self.single = [sv_volumes.one_volume(m, p.volumes, nested) for m in self.meshes]
         divisor = MASK_DIVISOR[p.mask_res]
         self.shares_scene_depth = divisor == 1
-        # the clamp needs each mask pixel's receiver: the G-buffer's, at its resolution only
-        self.receivers = (ReceiverGrid(clamp=p.cull == "cc" and self.shares_scene_depth)
-                          if p.cull != "none" else None)
+        # the clamp needs each mask pixel's receiver (the G-buffer's, at its resolution only)
+        # and z-fail's closed volumes (with z-pass the camera may sit inside a volume, whose
+        # fragments at a pixel then add up to one exit where its receiver lies outside it)
+        clamp = p.cull == "cc" and self.shares_scene_depth and p.method == "zfail"
+        self.receivers = ReceiverGrid(clamp=clamp) if p.cull != "none" else None
         self.volumes, self.near_clip = self._volume_geometry(frame)
         self.receiver_uniforms = False  # whether the volume pass culls by a grid built
         # what the diagnostics were last counted for

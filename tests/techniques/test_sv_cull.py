@@ -13,7 +13,11 @@ Broken versions the tests were run against once (and failed):
 - a clamp short of the deepest receiver by the margin instead of beyond it: fails on crowd
   (5 pixels), terrain_long (1), slant_edge (828) and real_plates (1);
 - the clamp at a half mask (G-buffer samples taken for the mask's receivers):
-  test_clamp_needs_a_full_mask fails on V;
+  test_clamp_needs_a_full_mask_and_zfail fails on V;
+- the clamp under z-pass too: test_cull_leaves_v_unchanged fails on camera_in_shadow (239
+  pixels), hard_camera_in_shadow (292), hard_dueling_frusta (4,380) and
+  hard_near_plane_crossing (5) with per-triangle volumes, and
+  test_clamp_needs_a_full_mask_and_zfail on the fill;
 - cull as any string: test_bad_cull_exits_2 fails on the unknown value.
 """
 
@@ -31,8 +35,9 @@ HARD_CASES = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
 SCENES = [(SCENE_FILE, name) for name, scene in config.load_scenes(SCENE_FILE).items()
           if scene.family is None] + [(HARD_CASES, name) for name in config.load_scenes(HARD_CASES)]
 # the default (silhouette volumes for closed parts, z-fail, stencil), per-triangle volumes
-# everywhere, and the state machine counting z-pass in the alpha channel
-SETTINGS = [{}, {"volumes": "polygon"}, {"buffer": "alpha", "method": "zpass"}]
+# everywhere under z-fail and z-pass, and the state machine counting z-pass in the alpha channel
+SETTINGS = [{}, {"volumes": "polygon"}, {"volumes": "polygon", "method": "zpass"},
+            {"buffer": "alpha", "method": "zpass"}]
 FAMILY = "architecture"
 # frags_shadow with none / with each (measured at 128 x 128); foliage at 10^4: 1.00 and 1.40
 FILL_FACTOR = {"cull": 1.0639, "cc": 2.7202}
@@ -79,13 +84,15 @@ def test_cull_lowers_fill_on_a_scale_scene(gl_context, cull):
         frame.release()
 
 
-def test_clamp_needs_a_full_mask(gl_context):
-    """At half the G-buffer's resolution a mask pixel's receiver is no G-buffer sample: cc
-    culls only, with the fill (and V) of cull."""
+@pytest.mark.parametrize("setting", [{"mask_res": "half"}, {"method": "zpass"}])
+def test_clamp_needs_a_full_mask_and_zfail(gl_context, setting):
+    """At half the G-buffer's resolution a mask pixel's receiver is no G-buffer sample, and
+    under z-pass a volume around the camera does not add up to nothing where its receiver lies
+    outside it: cc culls only, with the fill (and V) of cull."""
     scene = config.load_scenes(SCENE_FILE)[FAMILY].at_triangles(10_000)
     frame = Frame(build_scene(FAMILY, scene, SCENE_FILE).with_resolution(128, 128))
     try:
-        culled, cc = (_render(frame, cull=cull, mask_res="half") for cull in ("cull", "cc"))
+        culled, cc = (_render(frame, cull=cull, **setting) for cull in ("cull", "cc"))
         assert np.array_equal(culled.visibility, cc.visibility)
         assert cc.shadow_fragments == culled.shadow_fragments
     finally:
