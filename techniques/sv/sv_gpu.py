@@ -150,7 +150,7 @@ class GpuVolumes:
     def draw(self, light: Light, view_proj: np.ndarray, poses: np.ndarray,
              receivers: dict | None = None, **fragment_uniforms) -> None:
         """All volumes for ``light``, each part placed by its pose in ``poses`` (P, 4, 4);
-        ``fragment_uniforms`` go to sv_volume.frag.glsl; ``receivers``: cull: cc's grid
+        ``fragment_uniforms`` go to sv_volume.frag.glsl; ``receivers``: the cull's grid
         (``sv_cull.ReceiverGrid.uniforms``), None for no culling."""
         for program in self.programs:
             program.use().set(view_proj=view_proj, caps=self.caps,
