@@ -99,10 +99,10 @@ class ShadowVolumes(Technique):
     triangle in the cells its footprint touches. ``cc`` also clamps the rest to the light
     depths from the triangle's nearest corner to that deepest receiver, per fragment (the
     rasterised volume stays: a clamped far edge rasterises otherwise and moved V at tie
-    pixels), with a full mask and z-fail only. Both are conservative: V is the same as with ``none``,
-    only fill and time change; the clamp lowers the fill that reaches the count, not the
-    rasterised area, and costs a texel fetch a fragment (``sv_cull`` says more). They apply to
-    a directional light's per-triangle volumes (open parts, or all with ``volumes:
+    pixels), with a full mask and z-fail only. Both are conservative: V is the same as with
+    ``none``, only fill and time change; the clamp lowers the fill that reaches the count, not
+    the rasterised area, and costs a texel fetch a fragment (``sv_cull`` says more). They
+    apply to a directional light's per-triangle volumes (open parts, or all with ``volumes:
     polygon``); silhouette volumes, and every volume of a spot or point light, are drawn as
     with ``none``.
 

@@ -23,15 +23,15 @@ wherever the camera is): V stays bit-equal. Under z-pass they add up to one exit
 camera sits inside the volume, so z-pass is culled only (the clamp changed V by 239 to 4,380
 pixels on the camera-in-shadow scenes and hard_dueling_frusta there). It needs the receiver of
 each mask pixel, so it applies where the mask has the G-buffer's resolution (``mask_res:
-full``); smaller masks are culled only.
+full``); smaller masks are culled only. What it lowers is the fill that reaches the count
+(``frags_shadow``), not the rasterised area, and each fragment pays a texel fetch: on
+llvmpipe ``cc`` takes longer than ``cull`` (docs/techniques.md has the figures).
 
 Bit-equal where sv's count is exact: the alpha and screen buffers' 8-bit state machine with
 ``normalize: max`` loses a count under many nested volumes, and there one volume fewer (culled
 or clamped) can change a pixel, to the exact answer (terrain_long at 96 x 96, per-triangle
 volumes, alpha, z-fail: 1 pixel, 0 with none and 1 with cull, cc, the stencil and the alpha
-buffer's rectangles). What it lowers is the fill that reaches the count (``frags_shadow``), not the
-rasterised area, and each fragment pays a texel fetch: on llvmpipe ``cc`` takes longer than
-``cull`` (docs/techniques.md has the figures).
+buffer's rectangles).
 """
 
 from __future__ import annotations
