@@ -157,7 +157,12 @@ class SampleHierarchy:
         def program(name, **more):
             return ComputeProgram(HERE / name, {**defines, **more})
 
-        self.box_program = program("ptsv_boxes.comp.glsl")
+        # per kind of box dispatch: level 1 (samples), the levels above, the root over slices
+        self.box_programs = {
+            "samples": program("ptsv_boxes.comp.glsl", SAMPLES=1,
+                               **({"CLUSTERS": 1} if slices > 1 else {})),
+            "nodes": program("ptsv_boxes.comp.glsl"),
+            **({"merge": program("ptsv_boxes.comp.glsl", MERGE_SLICES=1)} if slices > 1 else {})}
         self.dispatch_program = program("ptsv_dispatch.comp.glsl")
         # the timed programs, and the same counting their work for the untimed repeat
         self.setup_programs = {c: program("ptsv_setup.comp.glsl", **({"COUNT": 1} if c else {}))
@@ -228,24 +233,25 @@ class SampleHierarchy:
         bottom up. With clusters, a sample's slice is its view depth (``depth_plane`` . (p, 1),
         p relative to ``origin``) on a log scale over ``depth_range``, cut in ``slices``."""
         self._bind()
-        program = self.box_program.use()
         near, far = depth_range
         scale = self.slices / np.log(max(far / near, 1.0 + 1e-6))
-        program.set(gbuffer_position=position.bind(0), divisor=self.divisor,
-                    origin=np.asarray(origin, np.float32), merge_slices=False,
-                    depth_plane=np.asarray(depth_plane, np.float32),
-                    slice_map=np.array([scale, -np.log(near) * scale], np.float32))
-        _set(program, slices=self.slices)
+        for program in self.box_programs.values():
+            program.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
+                              box_texels=TEXELS["box_texels"][0],
+                              origin=np.asarray(origin, np.float32),
+                              depth_plane=np.asarray(depth_plane, np.float32),
+                              slice_map=np.array([scale, -np.log(near) * scale], np.float32))
+            _set(program, slices=self.slices)
         for level in range(1, self.levels + 1):
             (w, h), (cw, ch) = self.sizes[level], self.sizes[level - 1]
-            _set(program, level=level, node_size=(w, h), child_size=(cw, ch),
+            program = self.box_programs["samples" if level == 1 else "nodes"].use()
+            _set(program, node_size=(w, h), child_size=(cw, ch),
                  node_first=self.node_first[level],
                  child_first=self.node_first[level - 1] if level > 1 else 0)
             GL.glDispatchCompute(-(-w // 8), -(-h // 8), 1 if level == 1 else self.slices)
             _barrier()
         if self.slices > 1:
-            program.set(merge_slices=True)
-            _set(program, node_size=(1, 1), node_first=self.root,
+            _set(self.box_programs["merge"].use(), node_size=(1, 1), node_first=self.root,
                  child_first=self.node_first[self.levels])
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
@@ -345,6 +351,6 @@ class SampleHierarchy:
         GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
         GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
                                self.queues, self.planes, self.closed_side, self.sample_slices])
-        for program in (self.box_program, self.dispatch_program, *self.setup_programs.values(),
-                        *self.traverse_programs.values()):
+        for program in (*self.box_programs.values(), self.dispatch_program,
+                        *self.setup_programs.values(), *self.traverse_programs.values()):
             program.release()
