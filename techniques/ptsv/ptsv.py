@@ -116,7 +116,8 @@ class PerTriangleShadowVolumes(Technique):
                                          p.slices if p.hierarchy == "clusters" else 1,
                                          positional=scene.light.positional)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "ptsv_visibility.frag.glsl", TILE=p.tile)
+                                              "ptsv_visibility.frag.glsl", TILE=p.tile,
+                                              **({"MAGNIFY": 1} if self.divisor > 1 else {}))
         self.counted_for = None
         self.work: dict = {}
 
@@ -173,7 +174,7 @@ class PerTriangleShadowVolumes(Technique):
             frame.begin_visibility()
             program = self.visibility_program.use()
             frame.bind_gbuffer(program)
-            program.set(levels=h.levels, magnify=self.divisor > 1)
+            program.set(levels=h.levels)
             GL.glUniform2ui(program.location("mask_size"), *h.sizes[0])
             GL.glUniform1ui(program.location("slices"), h.slices)
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 4, h.marks)

@@ -1,7 +1,8 @@
 // V from the marks: a sample is shadowed where it, or any node above it, was marked (a node
 // inside a volume is marked whole, never its samples); with clusters, the nodes of the
-// sample's depth slice, then the root. A mask smaller than the image is
-// magnified bilinearly, as sv's (sv_visibility.frag.glsl), giving fractional V near edges.
+// sample's depth slice, then the root. A mask smaller than the image (compiled with MAGNIFY,
+// as common/mask_visibility.frag.glsl) is magnified bilinearly, as sv's, giving fractional V
+// near edges.
 #include "gbuffer_read.glsl"
 
 layout(std430, binding = 4) readonly buffer Marks { uint marks[]; };
@@ -9,7 +10,6 @@ layout(std430, binding = 9) readonly buffer Slices { uint sample_slices[]; };  /
 uniform uvec2 mask_size;  // samples per row and column
 uniform int levels;  // node levels above the samples
 uniform uint slices;  // depth slices per tile (ptsv_volume.glsl); > 1: a root above the levels
-uniform bool magnify;
 layout(location = 0) out float visibility;
 
 float lit(ivec2 texel) {
@@ -31,10 +31,13 @@ float lit(ivec2 texel) {
 void main() {
     vec3 p, n;
     if (!gbuffer_fetch(p, n)) { visibility = 1.0; return; }
-    if (!magnify) { visibility = lit(ivec2(gl_FragCoord.xy)); return; }
+#ifndef MAGNIFY
+    visibility = lit(ivec2(gl_FragCoord.xy));
+#else
     vec2 t = gl_FragCoord.xy * vec2(mask_size) / vec2(textureSize(gbuffer_position, 0)) - 0.5;
     ivec2 i = ivec2(floor(t));
     vec2 w = t - floor(t);
     visibility = mix(mix(lit(i), lit(i + ivec2(1, 0)), w.x),
                      mix(lit(i + ivec2(0, 1)), lit(i + ivec2(1, 1)), w.x), w.y);
+#endif
 }

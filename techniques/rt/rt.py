@@ -97,7 +97,8 @@ class RayTraced(Technique):
         self.mask = Texture(-(-frame.width // divisor), -(-frame.height // divisor), GL.GL_R32F)
         self.divisor = divisor
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "../common/mask_visibility.frag.glsl")
+                                              "../common/mask_visibility.frag.glsl",
+                                              **({"MAGNIFY": 1} if divisor > 1 else {}))
         self.levels = self.embree = self.trace_program = None
         self.counted = (None, {})  # what the counters were last counted for, and their values
         if p.backend == "embree":
@@ -141,8 +142,7 @@ class RayTraced(Technique):
         frame.begin_visibility()
         program = self.visibility_program.use()
         unit = frame.bind_gbuffer(program)
-        program.set(shadow_mask=self.mask.bind(unit), mask_channel=0, lit_threshold=0.5,
-                    magnify=self.divisor > 1)
+        program.set(shadow_mask=self.mask.bind(unit), mask_channel=0, lit_threshold=0.5)
         frame.draw_fullscreen(covered_only=True)
 
     def _count(self, frame: Frame) -> dict:

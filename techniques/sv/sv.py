@@ -184,7 +184,8 @@ class ShadowVolumes(Technique):
         self.scene_program = self.shader(__file__, "gbuffer.vert.glsl", "sv_fill.frag.glsl")
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "../common/mask_visibility.frag.glsl")
+                                              "../common/mask_visibility.frag.glsl",
+                                              **({"MAGNIFY": 1} if divisor > 1 else {}))
 
     def _volume_geometry(self, frame: Frame):
         """The volumes and, for nearclip, the near-plane clip polygons: what the volume pass
@@ -381,7 +382,7 @@ class ShadowVolumes(Technique):
         p = self.params
         lit_threshold = 0.75 if p.buffer != "stencil" and p.normalize == "max" else 0.5
         program.set(shadow_mask=self.mask.colors[0].bind(unit), mask_channel=CHANNEL[p.buffer],
-                    lit_threshold=lit_threshold, magnify=p.mask_res != "full")
+                    lit_threshold=lit_threshold)
         frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
 
     def render(self, frame: Frame) -> ShadowOutput:
