@@ -105,6 +105,18 @@ def assert_one_line(code, err, expected_code, *needles):
         assert needle in err[0], err
 
 
+def assert_bad_setting_exits_2(tmp_path, capsys, technique: str, setting: str, message: str):
+    """An experiment running ``technique`` with ``setting`` (YAML flow mapping) on box_plane
+    exits 2 with one line naming the file and holding ``message``, and writes nothing."""
+    experiment = tmp_path / "bad.yaml"
+    experiment.write_text(f"scenes: [box_plane]\ntechniques:\n  {technique}: "
+                          f"[{{set: {setting}}}]\n")
+    out = tmp_path / "out"
+    code, err = run_cli(["run", experiment, "--out", out], capsys)
+    assert_one_line(code, err, 2, str(experiment), message)
+    assert not out.exists()
+
+
 def subprocess_env(**extra) -> dict:
     return {**os.environ, "PYTHONPATH": str(ROOT), **extra}
 

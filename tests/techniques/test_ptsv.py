@@ -30,7 +30,7 @@ Broken versions each test was run against once (and failed):
 
 import numpy as np
 import pytest
-from helpers import ROOT, SCENE_FILE, render_once
+from helpers import ROOT, SCENE_FILE, assert_bad_setting_exits_2, render_once
 
 from harness import config, metrics
 from harness.scene import load_scene
@@ -209,15 +209,7 @@ def test_spot_light_volumes_are_bounded_across_the_light(frames):
 def test_bad_parameters_exit_2(tmp_path, capsys, setting, message):
     """An unknown hierarchy, a tile not a power of two or out of 2..16: exit 2, one line naming
     the file and the key, nothing written."""
-    from harness import cli
-
-    experiment = tmp_path / "bad.yaml"
-    experiment.write_text(f"scenes: [box_plane]\ntechniques:\n  ptsv: [{{set: {setting}}}]\n")
-    out = tmp_path / "out"
-    assert cli.main(["run", str(experiment), "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert str(experiment) in err and message in err and len(err.splitlines()) == 1
-    assert not out.exists()
+    assert_bad_setting_exits_2(tmp_path, capsys, "ptsv", setting, message)
 
 
 def test_batches_when_the_queues_are_full(frames, monkeypatch):

@@ -23,7 +23,8 @@ Broken versions the tests were run against once (and failed):
 
 import numpy as np
 import pytest
-from helpers import ROOT, SCENE_FILE, render_once, render_visibility
+from helpers import (ROOT, SCENE_FILE, assert_bad_setting_exits_2, render_once,
+                     render_visibility)
 
 from harness import config
 from harness.scene import build_scene, load_scene
@@ -150,12 +151,4 @@ def test_cull_refused_with_nearclip(cull):
 def test_bad_cull_exits_2(tmp_path, capsys, setting, message):
     """An unknown cull, or one with nearclip: exit 2, one line naming the file and the key,
     nothing written."""
-    from harness import cli
-
-    experiment = tmp_path / "bad.yaml"
-    experiment.write_text(f"scenes: [box_plane]\ntechniques:\n  sv: [{{set: {setting}}}]\n")
-    out = tmp_path / "out"
-    assert cli.main(["run", str(experiment), "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert str(experiment) in err and message in err and len(err.splitlines()) == 1
-    assert not out.exists()
+    assert_bad_setting_exits_2(tmp_path, capsys, "sv", setting, message)
