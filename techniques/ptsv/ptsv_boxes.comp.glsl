@@ -26,8 +26,10 @@ void main() {
 #if defined(MERGE_SLICES)
     // the root: node_first's box over child_first's `slices` nodes
     for (uint s = 0u; s < slices; ++s) {
-        lo = min(lo, boxes[2u * (child_first + s)].xyz);
-        hi = max(hi, boxes[2u * (child_first + s) + 1u].xyz);
+        vec3 child_lo, child_hi;
+        node_box(child_first + s, child_lo, child_hi);
+        lo = min(lo, child_lo);
+        hi = max(hi, child_hi);
     }
     boxes[2u * node_first] = vec4(lo, 0.0);
     boxes[2u * node_first + 1u] = vec4(hi, 0.0);

@@ -12,6 +12,7 @@ from pydantic import Field
 from harness.gl.framebuffer import Texture
 from harness.gl.shaders import ComputeProgram
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from techniques.common.mask import mask_visibility_program
 
 from . import bvh, counters, levels
 from .embree import EmbreeRays
@@ -96,9 +97,7 @@ class RayTraced(Technique):
         divisor = MASK_DIVISOR[p.mask_res]
         self.mask = Texture(-(-frame.width // divisor), -(-frame.height // divisor), GL.GL_R32F)
         self.divisor = divisor
-        self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "../common/mask_visibility.frag.glsl",
-                                              **({"MAGNIFY": 1} if divisor > 1 else {}))
+        self.visibility_program = mask_visibility_program(divisor)
         self.levels = self.embree = self.trace_program = None
         self.counted = (None, {})  # what the counters were last counted for, and their values
         if p.backend == "embree":

@@ -11,6 +11,7 @@ from OpenGL import GL
 
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from techniques.common.mask import mask_visibility_program
 
 from . import sv_cpu, sv_volumes
 from .sv_cull import ReceiverGrid
@@ -183,9 +184,7 @@ class ShadowVolumes(Technique):
             frame.share_scene_depth(self.mask)
         self.scene_program = self.shader(__file__, "gbuffer.vert.glsl", "sv_fill.frag.glsl")
         self.fill_program = self.shader(__file__, "fullscreen.vert.glsl", "sv_fill.frag.glsl")
-        self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
-                                              "../common/mask_visibility.frag.glsl",
-                                              **({"MAGNIFY": 1} if divisor > 1 else {}))
+        self.visibility_program = mask_visibility_program(divisor)
 
     def _volume_geometry(self, frame: Frame):
         """The volumes and, for nearclip, the near-plane clip polygons: what the volume pass
