@@ -1,5 +1,6 @@
-"""The GPU side of ptsv: the hierarchy over the view samples, the per-triangle volumes and the
-level-by-level traversal, with the buffers they share (a helper of the technique, not one).
+"""The GPU side of ptsv: the hierarchy over the view samples, the casters' volumes (a
+triangle's or a quad's, casters.py) and the level-by-level traversal, with the buffers they
+share (a helper of the technique, not one).
 
 Levels: level 0 is the samples (the G-buffer at the mask's resolution), level k >= 1 a grid of
 nodes, each the ``tile`` x ``tile`` nodes (or samples) below it, up to a single root. With
@@ -8,7 +9,7 @@ clusters (``slices`` > 1, Sintorn et al. 2014) each level holds that grid once p
 level's slices. Node numbers run level 1 first, slice-major within a level; the marks buffer
 holds one flag per sample, then one per node. The traversal queues (volume, node) items in two
 regions used in turn (level k in region k & 1), each of ``capacity`` items; the planes buffer
-holds the queued triangles' volumes. Both grow when a frame overflows them (counted on the GPU,
+holds the queued casters' volumes. Both grow when a frame overflows them (counted on the GPU,
 read back once after the traversal, which then runs again with room): memory follows the scene
 instead of a worst case.
 """
@@ -26,16 +27,18 @@ from harness.gl.shaders import ComputeProgram
 HERE = Path(__file__).parent
 # counters (ptsv_volume.glsl's COUNT_*), then one per level: items queued for it
 # the harness's traversal columns: traversal_nodes the node-volume tests, triangle_tests the
-# sample-volume tests (each of one triangle's volume against one view sample)
+# sample-volume tests (each of one caster's volume against one view sample); triangles_culled
+# counts a culled quad's two triangles
 COUNTER_NAMES = ("volumes_queued", "triangles_culled", "traversal_nodes", "trivial_accepts",
                  "root_accepts", "triangle_tests")
 COUNT_LEVELS = 8
 EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which it casts nothing
 MIN_CAPACITY = 1 << 14
-MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the triangles go in batches
+MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the casters go in batches
 ITEM_BYTES = 8  # (volume, node)
-PLANES_BYTES = 80  # five vec4 per volume: four planes, its bounds across a directional light
+PLANES_BYTES = 96  # six vec4 per volume: five planes, its bounds across the light
 BOX_BYTES = 32
+CASTER_BYTES = 20  # four corner indices and the closed part's side
 
 
 def closed_sides(triangles: np.ndarray, part_faces: list[int], closed: np.ndarray) -> np.ndarray:
@@ -99,7 +102,7 @@ def _barrier() -> None:
 TEXELS = {"box_texels": (1, GL.GL_RGBA32F, 16), "plane_texels": (2, GL.GL_RGBA32F, 16),
           "item_texels": (3, GL.GL_RG32UI, 8), "mark_texels": (4, GL.GL_R32UI, 4),
           "slice_texels": (5, GL.GL_R32UI, 4), "vertex_texels": (6, GL.GL_RGB32F, 12),
-          "index_texels": (7, GL.GL_RGB32UI, 12)}
+          "caster_texels": (7, GL.GL_RGBA32UI, 16)}
 
 
 def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
@@ -138,10 +141,10 @@ class SampleHierarchy:
     (1: tiles) and kind of light (``positional``: a spot or point light, whose programs are
     compiled with POSITIONAL_LIGHT)."""
 
-    def __init__(self, width: int, height: int, divisor: int, tile: int, closed_side: np.ndarray,
-                 slices: int = 1, positional: bool = False):
-        triangles = len(closed_side)
-        self.divisor, self.tile, self.triangles, self.slices = divisor, tile, triangles, slices
+    def __init__(self, width: int, height: int, divisor: int, tile: int, casters: np.ndarray,
+                 closed_side: np.ndarray, slices: int = 1, positional: bool = False):
+        self.divisor, self.tile, self.slices = divisor, tile, slices
+        self.caster_count = len(casters)
         self.sizes = level_sizes(-(-width // divisor), -(-height // divisor), tile)
         self.levels = len(self.sizes) - 1
         self.samples = self.sizes[0][0] * self.sizes[0][1]
@@ -183,16 +186,22 @@ class SampleHierarchy:
                                      ("slice_texels", self.sample_slices,
                                       self.samples * 4 if slices > 1 else 0)):
             _texels(self.textures[name], name, buffer, nbytes)
-        self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per triangle
+        self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per caster
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
         GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
                            np.ascontiguousarray(closed_side, np.int32))
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        self.casters = _storage(casters.nbytes)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.casters)
+        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, casters.nbytes,
+                           np.ascontiguousarray(casters, np.uint32))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        _texels(self.textures["caster_texels"], "caster_texels", self.casters, casters.nbytes)
         self.capacity = self.volume_capacity = 0
         self.queues = self.planes = None
-        self._grow(max(MIN_CAPACITY, min(triangles, 1 << 20)),
-                   max(MIN_CAPACITY, min(triangles // 4, MAX_CAPACITY)))
-        self.batch = triangles  # triangles per traversal batch, halved while queues overflow
+        self._grow(max(MIN_CAPACITY, min(self.caster_count, 1 << 20)),
+                   max(MIN_CAPACITY, min(self.caster_count // 4, MAX_CAPACITY)))
+        self.batch = self.caster_count  # casters per traversal batch, halved while queues overflow
 
     @property
     def mem_bytes(self) -> int:
@@ -200,7 +209,7 @@ class SampleHierarchy:
         return (self.nodes * BOX_BYTES + (self.samples + self.nodes) * 4
                 + (self.samples * 4 if self.slices > 1 else 0)
                 + 2 * self.capacity * ITEM_BYTES + self.volume_capacity * PLANES_BYTES
-                + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + 4 * self.triangles)
+                + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + CASTER_BYTES * self.caster_count)
 
     def _grow(self, capacity: int, volume_capacity: int) -> None:
         if capacity > self.capacity:
@@ -256,13 +265,14 @@ class SampleHierarchy:
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
 
-    def traverse(self, position: Texture, vertices: int, indices: int, light: np.ndarray,
+    def traverse(self, position: Texture, vertices: int, light: np.ndarray,
                  axis: np.ndarray, origin: np.ndarray, tie: float,
                  count: bool = False) -> np.ndarray:
-        """Mark the samples and nodes inside the volumes of the scene's triangles (vertex and
-        index buffers of the scene mesh) for ``light`` (homogeneous), positions taken relative
-        to ``origin`` (float32, near the scene); ``axis``, a direction the light's rays take
-        (ptsv_volume.glsl's cross-section bounds). The triangles go in batches (all at once
+        """Mark the samples and nodes inside the casters' volumes (their corners index
+        ``vertices``, the scene mesh's vertex buffer) for ``light`` (homogeneous), positions
+        taken relative to ``origin`` (float32, near the scene); ``axis``, a direction the
+        light's rays take
+        (ptsv_volume.glsl's cross-section bounds). The casters go in batches (all at once
         unless a frame needed more room): a batch whose queues overflowed runs again with room
         (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
         once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
@@ -271,9 +281,9 @@ class SampleHierarchy:
         across = _across(light, axis, np.asarray(origin, np.float64))
         total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
         self.peak = self.batches = start = 0
-        while start < self.triangles:
-            end = min(start + self.batch, self.triangles)
-            counters = self._traverse_batch(position, vertices, indices, light, across, origin,
+        while start < self.caster_count:
+            end = min(start + self.batch, self.caster_count)
+            counters = self._traverse_batch(position, vertices, light, across, origin,
                                             tie, count, start, end)
             needed = int(counters[COUNT_LEVELS:].max(initial=0))
             volumes = int(counters[0])
@@ -290,15 +300,14 @@ class SampleHierarchy:
                 self.batch = max(1, (end - start) // 2)
         return total
 
-    def _traverse_batch(self, position, vertices, indices, light, across, origin, tie, count,
+    def _traverse_batch(self, position, vertices, light, across, origin, tie, count,
                         start: int, end: int) -> np.ndarray:
         _zero(self.counters)
         # attached every batch: a moved scene's mesh is new buffers, maybe under the old names
-        for name, buffer in (("vertex_texels", vertices), ("index_texels", indices)):
-            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, buffer)
-            nbytes = int(GL.glGetBufferParameteriv(GL.GL_TEXTURE_BUFFER, GL.GL_BUFFER_SIZE))
-            GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
-            _texels(self.textures[name], name, buffer, nbytes)
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, vertices)
+        nbytes = int(GL.glGetBufferParameteriv(GL.GL_TEXTURE_BUFFER, GL.GL_BUFFER_SIZE))
+        GL.glBindBuffer(GL.GL_TEXTURE_BUFFER, 0)
+        _texels(self.textures["vertex_texels"], "vertex_texels", vertices, nbytes)
         self._bind()
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
@@ -307,8 +316,8 @@ class SampleHierarchy:
                       slices=self.slices)
         setup = self.setup_programs[count].use()
         setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
-        _set(setup, light_vector=np.asarray(light, np.float32), first_triangle=start,
-             triangle_end=end, root=self.root, root_level=self.levels,
+        _set(setup, light_vector=np.asarray(light, np.float32), first_caster=start,
+             caster_end=end, root=self.root, root_level=self.levels,
              top_first=self.node_first[self.levels], **shared)
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
@@ -351,6 +360,7 @@ class SampleHierarchy:
         GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
         GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
                                self.queues, self.planes, self.closed_side, self.sample_slices])
+        GL.glDeleteBuffers(1, [self.casters])
         for program in (*self.box_programs.values(), self.dispatch_program,
                         *self.setup_programs.values(), *self.traverse_programs.values()):
             program.release()

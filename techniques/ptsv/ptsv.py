@@ -13,6 +13,7 @@ from pydantic import Field, field_validator
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.transforms import box_corners
 
+from .casters import quad_casters, triangle_casters
 from .hierarchy import SampleHierarchy, closed_sides
 
 # mask_res -> image pixels along each axis per sample (as sv's)
@@ -20,6 +21,9 @@ MASK_DIVISOR = {"full": 1, "half": 2, "quarter": 4}
 # a point this far behind its own triangle's plane, relative to the scene's largest coordinate,
 # counts as shadowed by it: float32 G-buffer positions and planes lie within ~1e-7 of it
 TIE = 2.0 ** -20
+# how far off the first triangle's plane a quad's fourth corner may lie, relative to the scene's
+# largest coordinate: well inside the tie, so the quad's plane decides as both triangles' do
+FLATNESS = TIE / 8
 
 
 class PerTriangleShadowVolumes(Technique):
@@ -40,11 +44,11 @@ class PerTriangleShadowVolumes(Technique):
     up to one root over the top level's slices; a tile's box no longer spans every depth it
     holds, as it does where foliage's leaves scatter in depth. Unlike Sintorn 2014 the samples
     are not sorted by their key: a cluster's samples are its tile's samples of its slice);
-    ``volumes`` computes every triangle's volume from the frame's light (directional, spot or
-    point; each triangle turned toward the light, an edge-on one casting none, as sv's
-    per-triangle volumes; in a closed part only the triangles facing the light, which shadow
+    ``volumes`` computes every caster's volume from the frame's light (directional, spot or
+    point; each caster turned toward the light, an edge-on one casting none, as sv's
+    per-triangle volumes; in a closed part only the casters facing the light, which shadow
     all that the part does) and tests the root, then descends level by level: a node outside the
-    volume (beyond one of its planes, or beyond its triangle's bounds on two axes across the
+    volume (beyond one of its planes, or beyond its caster's bounds on two axes across the
     light: a directional light's direction, or, after a central projection from a spot or point
     light, its axis) is skipped, one inside is marked shadowed whole, any other
     has its children tested, down to the samples themselves. Work moves between levels in
@@ -56,16 +60,25 @@ class PerTriangleShadowVolumes(Technique):
     far plane to clip against. A point exactly on its own triangle's plane (within float32
     rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it.
 
+    A caster is a triangle, or with ``quads`` (the default) two triangles that make a planar
+    convex quad (each one's longest side the other's, consistently wound, the fourth corner
+    within 2^-23 of the scene's largest coordinate of the first one's plane: ``casters.py``):
+    the quad's volume (its plane and the planes through its four sides and the light) is the
+    union of the two triangles' volumes, so V is the same, and one volume is tested where the
+    paper tests two. Grids and cards are such quads, so the volumes, and the traversal's work,
+    about halve; ``quads: false`` is the paper's one volume per triangle.
+
     Counted in an untimed repeat whenever the light, the camera or an object moved:
     ``traversal_nodes`` (node-volume tests, the root's included), ``trivial_accepts`` (nodes
     marked whole; ``root_accepts`` of them at the root), ``triangle_tests`` (sample-volume
-    tests: a view sample against one triangle's volume; these two are the harness's traversal
+    tests: a view sample against one caster's volume; these two are the harness's traversal
     columns, which the cost model prices), ``triangles_culled``
-    (edge-on, turned from the light in a closed part, or the root's box outside the volume),
+    (edge-on, turned from the light in a closed part, or the root's box outside the volume; a
+    quad's two), ``volumes_queued`` (the casters' volumes that were not),
     ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
     (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the samples' slices
     (clusters), the queued volumes and the work queues, which grow when a frame overflows them,
-    up to 2^22 items a queue; past that the triangles are traversed in batches
+    up to 2^22 items a queue; past that the casters are traversed in batches
     (``hierarchy.py``).
 
     ==============  ====================================================  =======  ===========
@@ -79,6 +92,8 @@ class PerTriangleShadowVolumes(Technique):
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
                     magnification, as sv)
+    ``quads``       two triangles making a planar convex quad cast one    true
+                    volume (V the same); ``false``: one per triangle
     ==============  ====================================================  =======  ===========
     """
 
@@ -98,6 +113,7 @@ class PerTriangleShadowVolumes(Technique):
         tile: int = Field(2, ge=2, le=16)
         slices: int = Field(16, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
+        quads: bool = True
 
         @field_validator("tile")
         @classmethod
@@ -112,7 +128,12 @@ class PerTriangleShadowVolumes(Technique):
         scene = frame.scene
         sides = closed_sides(scene.triangles, [len(part.faces) for part in scene.parts],
                              scene.edges.closed)
-        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, sides,
+        vertices, faces = scene.indexed
+        casters, caster_sides = (
+            quad_casters(vertices, faces, sides, FLATNESS * float(np.abs(scene.bounds).max()))
+            if p.quads else (triangle_casters(faces), sides))
+        self.hierarchy = SampleHierarchy(frame.width, frame.height, self.divisor, p.tile, casters,
+                                         caster_sides,
                                          p.slices if p.hierarchy == "clusters" else 1,
                                          positional=scene.light.positional)
         self.visibility_program = self.shader(__file__, "fullscreen.vert.glsl",
@@ -160,7 +181,7 @@ class PerTriangleShadowVolumes(Technique):
 
     def _traverse(self, frame: Frame, count: bool = False) -> np.ndarray:
         mesh = frame.geometry
-        return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo, mesh.ebo,
+        return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo,
                                        self._light(frame), self._axis(frame),
                                        self._origin(frame), self._tie(frame), count)
 

@@ -1,32 +1,35 @@
-// One invocation per scene triangle: its shadow volume's four planes from the frame's light,
-// then the root test. Edge-on triangles cast no volume (as sv's per-triangle volumes), nor do a
-// closed part's triangles turned from the light; every other triangle casts, turned toward the
-// light (an open part's back-facing triangle shadows as much as a front-facing one). A volume
-// the root box lies outside of is culled; one that holds the root box marks the root; any
-// other is queued for the level below the root (with clusters, the root's children, one per
-// depth slice, are tested here and queued for the level below theirs).
+// One invocation per caster (a scene triangle, or a planar convex quad of two: casters.py): its
+// shadow volume's planes from the frame's light (its own plane and one through each side and
+// the light; a triangle's fifth plane holds every point), then the root test. Edge-on casters
+// cast no volume (as sv's per-triangle volumes), nor do a closed part's casters turned from the
+// light; every other caster casts, turned toward the light (an open part's back-facing
+// triangle shadows as much as a front-facing one). A volume the root box lies outside of is
+// culled; one that holds the root box marks the root; any other is queued for the level below
+// the root (with clusters, the root's children, one per depth slice, are tested here and
+// queued for the level below theirs).
 #include "ptsv_volume.glsl"
 
 layout(local_size_x = 64) in;
-// the scene mesh's vertex (xyz) and index (3 per triangle) buffers, as buffer textures: one
-// fetch a vertex or triangle, where a storage buffer is read lane by lane on llvmpipe
+// the scene mesh's vertices (xyz) and the casters' corners (4 indices, a triangle's fourth
+// NO_CORNER), as buffer textures: one fetch a vertex or caster, where a storage buffer is read
+// lane by lane on llvmpipe
 uniform samplerBuffer vertex_texels;
-uniform usamplerBuffer index_texels;
-// per triangle: 0 in an open part; in a closed part 1 where its winding turns it outward, -1
+uniform usamplerBuffer caster_texels;
+// per caster: 0 in an open part; in a closed part 1 where its winding turns it outward, -1
 // inward. A closed part's light-facing triangles shadow all that it does (a segment from a
 // point outside it, or on it, to the light leaves it through one), so the others are culled.
 layout(std430, binding = 8) readonly buffer Closed { int closed_side[]; };
 // (position, 1) for a spot or point light, (-direction, 0) directional
 uniform vec4 light_vector;
-uniform uint first_triangle;  // this batch's triangles: first_triangle .. triangle_end - 1
-uniform uint triangle_end;
+uniform uint first_caster;  // this batch's casters: first_caster .. caster_end - 1
+uniform uint caster_end;
 uniform uint root;  // the root's node number
 uniform uint root_level;
 uniform uint top_first;  // clusters: node number of the top level's first slice (the root's children)
 
 
 // The plane through the edge from p to q (p the end of smaller vertex index, so the two
-// triangles sharing the edge compute the same plane) and the light, turned so that `inner`
+// casters sharing the edge compute the same plane) and the light, turned so that `inner`
 // lies on its negative side (an exact negation).
 vec4 edge_plane(vec3 p, vec3 q, vec4 light, vec3 inner) {
     vec3 n = normalize(cross(q - p, light.xyz - p * light.w));
@@ -35,36 +38,42 @@ vec4 edge_plane(vec3 p, vec3 q, vec4 light, vec3 inner) {
 }
 
 void main() {
-    uint triangle = first_triangle
+    uint caster = first_caster
         + (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u
         + gl_LocalInvocationIndex;
-    if (triangle >= triangle_end) return;
-    uvec3 index = texelFetch(index_texels, int(triangle)).xyz;
-    vec3 p[3] = vec3[3](texelFetch(vertex_texels, int(index.x)).xyz - origin,
+    if (caster >= caster_end) return;
+    uvec4 index = texelFetch(caster_texels, int(caster));
+    uint corners = index.w != NO_CORNER ? 4u : 3u;
+    if (corners == 3u) index.w = index.x;  // fetched again, so the bounds below take 3 corners
+    vec3 p[4] = vec3[4](texelFetch(vertex_texels, int(index.x)).xyz - origin,
                         texelFetch(vertex_texels, int(index.y)).xyz - origin,
-                        texelFetch(vertex_texels, int(index.z)).xyz - origin);
+                        texelFetch(vertex_texels, int(index.z)).xyz - origin,
+                        texelFetch(vertex_texels, int(index.w)).xyz - origin);
     vec3 n = cross(p[1] - p[0], p[2] - p[0]);
     vec4 light = vec4(light_vector.xyz - origin * light_vector.w, light_vector.w);
     vec3 to_light = light.xyz - p[0] * light.w;
     float facing = dot(n, to_light);
     if (abs(facing) <= EDGE_ON * length(n) * length(to_light)
-        || float(closed_side[triangle]) * facing < 0.0) {
-        TALLY(COUNT_CULLED);
+        || float(closed_side[caster]) * facing < 0.0) {
+        TALLY_TRIANGLES(COUNT_CULLED, corners - 2u);
         return;
     }
     vec4 volume[VOLUME_ROWS];
-    // the triangle's plane: the light on its positive side, so the shadow is behind it
+    // the caster's plane: the light on its positive side, so the shadow is behind it
     vec3 toward = normalize(facing > 0.0 ? n : -n);
     volume[0] = vec4(toward, -dot(toward, p[0]));
-    for (int k = 0; k < 3; ++k) {
-        int a = k, b = (k + 1) % 3;
-        bool ordered = index[a] < index[b];
-        volume[k + 1] = edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2) % 3]);
+    uint corner[4] = uint[4](index.x, index.y, index.z, index.w);
+    for (uint k = 0u; k < 4u; ++k) {
+        uint a = k % corners, b = (k + 1u) % corners;
+        bool ordered = corner[a] < corner[b];
+        volume[k + 1u] = k < corners
+            ? edge_plane(p[ordered ? a : b], p[ordered ? b : a], light, p[(k + 2u) % corners])
+            : vec4(0.0, 0.0, 0.0, -1.0);  // a triangle's: every point inside
     }
     // the cross-section bounds (ptsv_volume.glsl), widened for rounding: by `tie` across a
     // directional light, by 2^-20 of the largest coordinate (and of 1) after a projection
-    vec3 u, v, depth = vec3(1.0);
-    for (int k = 0; k < 3; ++k) {
+    vec4 u, v, depth = vec4(1.0);
+    for (int k = 0; k < 4; ++k) {
 #ifdef POSITIONAL_LIGHT
         vec3 d = p[k] - light_point;
         depth[k] = dot(light_axis, d);
@@ -76,19 +85,20 @@ void main() {
     }
     float widen = tie;
 #ifdef POSITIONAL_LIGHT
-    widen += (1.0 + max(max(max(abs(u.x), abs(u.y)), abs(u.z)),
-                        max(max(abs(v.x), abs(v.y)), abs(v.z)))) * (1.0 / 1048576.0);
+    vec4 largest = max(abs(u), abs(v));
+    widen += (1.0 + max(max(largest.x, largest.y), max(largest.z, largest.w)))
+        * (1.0 / 1048576.0);
 #endif
-    volume[4] = all(greaterThan(depth, vec3(0.0)))
-        ? vec4(min(min(u.x, u.y), u.z) - widen, max(max(u.x, u.y), u.z) + widen,
-               min(min(v.x, v.y), v.z) - widen, max(max(v.x, v.y), v.z) + widen)
+    volume[BOUNDS_ROW] = all(greaterThan(depth, vec4(0.0)))
+        ? vec4(min(min(u.x, u.y), min(u.z, u.w)) - widen, max(max(u.x, u.y), max(u.z, u.w)) + widen,
+               min(min(v.x, v.y), min(v.z, v.w)) - widen, max(max(v.x, v.y), max(v.z, v.w)) + widen)
         : vec4(1.0, -1.0, 1.0, -1.0);  // behind or beside the light along the axis: no bounds
     TALLY(COUNT_NODE_TESTS);
     vec3 lo, hi;
     node_box(root, lo, hi);
     int test = classify(volume, lo, hi);
     if (test < 0) {
-        TALLY(COUNT_CULLED);
+        TALLY_TRIANGLES(COUNT_CULLED, corners - 2u);
     } else if (test > 0) {
         mark_node(root);
         TALLY(COUNT_ACCEPTS);

@@ -1,12 +1,14 @@
-// The buffers every ptsv kernel shares and the tests of a triangle's shadow volume (Sintorn et
-// al. 2011): the triangle's plane, turned so the light lies on its positive side, and the
-// three planes through its edges and the light, turned so the triangle lies on their negative
-// side. Positions are taken relative to `origin` (the scene's centre, a float32 value: the
-// subtraction is exact near it), so that planes keep their precision far from the world's
-// origin. A point is inside the volume where it is behind the triangle's plane by more than
-// `tie` (the receiver's own triangle is no caster) and on the negative side of all three edge
-// planes. Planes are (unit normal, d): signed distance n . x + d, in scene units.
-layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // VOLUME_ROWS per queued triangle
+// The buffers every ptsv kernel shares and the tests of a caster's shadow volume (Sintorn et
+// al. 2011's per-triangle volume; a caster is a triangle or a planar convex quad of two,
+// casters.py): the caster's plane, turned so the light lies on its positive side, and the
+// planes through its three or four edges and the light, turned so the caster lies on their
+// negative side (a triangle's fifth row is a plane every point is inside of). Positions are
+// taken relative to `origin` (the scene's centre, a float32 value: the subtraction is exact near
+// it), so that planes keep their precision far from the world's origin. A point is inside the
+// volume where it is behind the caster's plane by more than `tie` (the receiver's own triangle
+// is no caster) and on the negative side of every edge plane. Planes are (unit normal, d):
+// signed distance n . x + d, in scene units.
+layout(std430, binding = 2) buffer Volumes { vec4 planes[]; };  // VOLUME_ROWS per queued caster
 layout(std430, binding = 3) buffer Boxes { vec4 boxes[]; };  // per node: min, max (xyz)
 // The same volumes, boxes, marks and queues as buffer textures (hierarchy.py's TEXELS), through
 // which the traversal reads them: llvmpipe loads a storage buffer's vector lane by lane, a
@@ -21,8 +23,8 @@ layout(std430, binding = 5) buffer Queues { uvec2 items[]; };  // (volume, node)
 // most `capacity` of them)
 layout(std430, binding = 6) buffer Counters { uint counters[]; };
 
-#define COUNT_VOLUMES 0u       // triangles whose volume is queued (rows of `planes`)
-#define COUNT_CULLED 1u        // triangles culled before traversal (edge-on, or miss the root)
+#define COUNT_VOLUMES 0u       // casters whose volume is queued (rows of `planes`)
+#define COUNT_CULLED 1u        // triangles culled before traversal (edge-on, or miss the root; a quad two)
 #define COUNT_NODE_TESTS 2u    // node-volume tests (the root's included)
 #define COUNT_ACCEPTS 3u       // nodes found inside a volume and marked whole
 #define COUNT_ROOT_ACCEPTS 4u  // of those, at the root
@@ -30,13 +32,13 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 #define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
 
 uniform vec3 origin;
-// A volume's cross-section lies within its triangle's bounds on two unit axes across the
+// A volume's cross-section lies within its caster's bounds on two unit axes across the
 // light's (the volume's last row, set up in ptsv_setup.comp.glsl): a point x's coordinates are
 // (u . x, v . x) across a directional light's direction; with POSITIONAL_LIGHT (a spot or
 // point light, compiled apart: llvmpipe runs both sides of a branch)
 // (u . d, v . d) / (axis . d), d = x - light_point, its central projection from the light onto
 // the plane one unit along the axis (the spot's direction, a point light's toward the scene),
-// taken only for a triangle wholly in front of the light along the axis (any other has no
+// taken only for a caster wholly in front of the light along the axis (any other has no
 // bounds: min > max).
 uniform vec3 light_u;
 uniform vec3 light_v;
@@ -44,7 +46,9 @@ uniform vec3 light_v;
 uniform vec3 light_axis;
 uniform vec3 light_point;  // relative to `origin`
 #endif
-#define VOLUME_ROWS 5  // vec4 per volume: its four planes, then (u min, u max, v min, v max)
+#define VOLUME_ROWS 6  // vec4 per volume: its five planes, then (u min, u max, v min, v max)
+#define BOUNDS_ROW 5
+#define NO_CORNER 0xFFFFFFFFu  // a triangle caster's fourth corner (casters.py)
 uniform float tie;  // how far behind its own plane a point must be to be shadowed
 uniform uint capacity;  // items per queue region
 uniform uint volume_capacity;  // rows of 4 planes in `planes`
@@ -56,8 +60,10 @@ uniform uint slices;
 
 #ifdef COUNT
 #define TALLY(what) atomicAdd(counters[what], 1u)
+#define TALLY_TRIANGLES(what, n) atomicAdd(counters[what], n)
 #else
 #define TALLY(what)
+#define TALLY_TRIANGLES(what, n)
 #endif
 
 // A point exactly on an edge plane is inside for one of the two triangles sharing the edge: as
@@ -103,9 +109,9 @@ int classify(vec4 volume[VOLUME_ROWS], vec3 lo, vec3 hi) {
     // outside the triangle's bounds across the light: a box the edge planes do not separate,
     // e.g. beyond a corner of the triangle
     vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
-    if (outside_bounds(volume[4], c, e)) return -1;
+    if (outside_bounds(volume[BOUNDS_ROW], c, e)) return -1;
     bool inside = true;
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < BOUNDS_ROW; ++k) {
         vec4 plane = volume[k];
         vec3 a = plane.xyz * lo, b = plane.xyz * hi;
         vec3 near = min(a, b), far = max(a, b);
@@ -119,14 +125,14 @@ int classify(vec4 volume[VOLUME_ROWS], vec3 lo, vec3 hi) {
 
 bool inside_volume(vec4 volume[VOLUME_ROWS], vec3 p) {
     return dot(volume[0].xyz, p) + volume[0].w < -tie && inside_edge(volume[1], p)
-        && inside_edge(volume[2], p) && inside_edge(volume[3], p);
+        && inside_edge(volume[2], p) && inside_edge(volume[3], p) && inside_edge(volume[4], p);
 }
 
 vec4[VOLUME_ROWS] volume_planes(uint volume) {
     int base = VOLUME_ROWS * int(volume);
     return vec4[VOLUME_ROWS](texelFetch(plane_texels, base), texelFetch(plane_texels, base + 1),
                              texelFetch(plane_texels, base + 2), texelFetch(plane_texels, base + 3),
-                             texelFetch(plane_texels, base + 4));
+                             texelFetch(plane_texels, base + 4), texelFetch(plane_texels, base + 5));
 }
 
 // A node's box; empty (lo > hi) where none of its samples is covered.

@@ -127,28 +127,32 @@ def _differences(frame: Frame, ptsv_v: np.ndarray, sv_v: np.ndarray) -> tuple[in
 @pytest.mark.parametrize("path,name", SCENES, ids=[n for _, n in SCENES])
 def test_same_v_as_sv(frames, path, name):
     """V equal to sv's (z-fail, stencil: exact up to rasterisation ties) on every covered
-    pixel but the counted, explained ones, with either hierarchy; the clusters' V is the
-    tiles' V on every pixel the light reaches (on hard_texel_corners one pixel it does not
+    pixel but the counted, explained ones, with either hierarchy and with every triangle its
+    own caster (``quads: false``); the clusters' V is the tiles' V, and the quads' V the
+    triangles', on every pixel the light reaches (on hard_texel_corners one pixel it does not
     reach differs: a tie, a box test and a sample test rounding apart)."""
     frame = frames(path, name)
     sv = _render(ShadowVolumes, frame).visibility
     tiles = _render(PerTriangleShadowVolumes, frame, hierarchy="tiles").visibility
     clusters = _render(PerTriangleShadowVolumes, frame).visibility
+    triangles = _render(PerTriangleShadowVolumes, frame, quads=False).visibility
     expected = DIFFERENCES.get(name, (0, 0, 0, 0))
-    for ptsv in (tiles, clusters):
+    for ptsv in (tiles, clusters, triangles):
         counted = _differences(frame, ptsv, sv)
         assert counted[3] == 0, f"{name}: {counted[3]} pixels differ unexplained"
         assert counted[1:] == expected[1:]
     assert _differences(frame, tiles, sv)[0] == expected[0]
     reached = _reached(frame)
     assert np.array_equal(tiles[reached], clusters[reached])
+    assert np.array_equal(triangles[reached], clusters[reached])
 
 
 @pytest.mark.parametrize("hierarchy", ["tiles", "clusters"])
 def test_volume_over_the_whole_screen(gl_context, tmp_path, hierarchy):
     """Accepted at the root and counted: V = 0 on every covered pixel with no sample tested;
-    the ground's two triangles are culled at the root (their volumes lie below it); the same
-    with clusters, whose root bounds the top level's depth slices."""
+    the ground's two triangles are culled at the root (their volumes lie below it: one quad's
+    volume, one root test, two triangles culled); the same with clusters, whose root bounds
+    the top level's depth slices."""
     (tmp_path / "one_triangle.obj").write_text("v -50 -50 5\nv 50 -50 5\nv 0 60 5\nf 1 2 3\n")
     (tmp_path / "scenes.yaml").write_text(UNDER_ONE_TRIANGLE)
     frame = Frame(load_scene("under_one_triangle", tmp_path / "scenes.yaml"))
@@ -158,7 +162,7 @@ def test_volume_over_the_whole_screen(gl_context, tmp_path, hierarchy):
         assert (out.visibility == 0).all()
         work = out.extra
         assert (work["root_accepts"], work["trivial_accepts"], work["traversal_nodes"],
-                work["triangle_tests"], work["triangles_culled"]) == (1, 1, 3, 0, 2)
+                work["triangle_tests"], work["triangles_culled"]) == (1, 1, 2, 0, 2)
     finally:
         frame.release()
 
@@ -166,16 +170,18 @@ def test_volume_over_the_whole_screen(gl_context, tmp_path, hierarchy):
 def test_clusters_test_fewer_samples(frames):
     """On pins (upright pins over a ground plane: screen tiles holding a pin and the ground
     behind it) the clusters' boxes, one per depth slice of a tile, are tighter than the tiles'
-    boxes over all depths: measured at 64x64, about 68,500 sample tests and 186,000 node tests
-    with tiles, 15,300 and 117,000 with clusters (16 slices), V the same (test_same_v_as_sv).
+    boxes over all depths: measured at 64x64 with every triangle its own caster, about 68,500
+    sample tests and 186,000 node tests with tiles, 15,300 and 117,000 with clusters (16
+    slices), V the same (test_same_v_as_sv). (With quads, the default: 37,100 and 103,000 with
+    tiles, 8,300 and 64,000 with clusters.)
     (Before the volumes' bounds across a directional light were tested, ptsv_volume.glsl's
     classify, 131,000 and 313,000 with tiles, 48,000 and 226,000 with clusters.)
     The counts move by about 1% between runs (a sample or node another volume marked first is
     not tested, and which volume comes first is the threads' race), so the test asks for less
     than half the tiles' sample tests and fewer node tests."""
     frame = frames(SCENE_FILE, "pins")
-    tiles = _render(PerTriangleShadowVolumes, frame, hierarchy="tiles").extra
-    clusters = _render(PerTriangleShadowVolumes, frame).extra
+    tiles = _render(PerTriangleShadowVolumes, frame, hierarchy="tiles", quads=False).extra
+    clusters = _render(PerTriangleShadowVolumes, frame, quads=False).extra
     assert 60_000 < tiles["triangle_tests"] < 76_000
     assert 0 < clusters["triangle_tests"] < tiles["triangle_tests"] / 2
     assert clusters["traversal_nodes"] < tiles["traversal_nodes"]
