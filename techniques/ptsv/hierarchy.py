@@ -236,6 +236,15 @@ class SampleHierarchy:
                                 (5, self.queues), (6, self.counters), (9, self.sample_slices)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
 
+    def bind_marks(self, program) -> None:
+        """Bind the marks and the samples' slices as ``program``'s ``mark_texels`` and
+        ``slice_texels`` (their TEXELS units)."""
+        for name in ("mark_texels", "slice_texels"):
+            GL.glActiveTexture(GL.GL_TEXTURE0 + TEXELS[name][0])
+            GL.glBindTexture(GL.GL_TEXTURE_BUFFER, self.textures[name])
+            program.set(**{name: TEXELS[name][0]})
+        GL.glActiveTexture(GL.GL_TEXTURE0)
+
     def build(self, position: Texture, origin: np.ndarray, depth_plane: np.ndarray,
               depth_range: tuple[float, float]) -> None:
         """Each level's node boxes from the G-buffer's positions (relative to ``origin``),

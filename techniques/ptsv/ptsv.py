@@ -198,8 +198,7 @@ class PerTriangleShadowVolumes(Technique):
             program.set(levels=h.levels)
             GL.glUniform2ui(program.location("mask_size"), *h.sizes[0])
             GL.glUniform1ui(program.location("slices"), h.slices)
-            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 4, h.marks)
-            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 9, h.sample_slices)
+            h.bind_marks(program)
             frame.draw_fullscreen(covered_only=True)
         self._count(frame)
         taps = 1 if self.divisor == 1 else 4

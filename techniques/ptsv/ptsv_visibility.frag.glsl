@@ -5,8 +5,10 @@
 // near edges.
 #include "gbuffer_read.glsl"
 
-layout(std430, binding = 4) readonly buffer Marks { uint marks[]; };
-layout(std430, binding = 9) readonly buffer Slices { uint sample_slices[]; };  // clusters'
+// the marks and the samples' slices (clusters'), as buffer textures (hierarchy.py's TEXELS): a
+// storage buffer is read lane by lane on llvmpipe, a texel in one fetch
+uniform usamplerBuffer mark_texels;
+uniform usamplerBuffer slice_texels;
 uniform uvec2 mask_size;  // samples per row and column
 uniform int levels;  // node levels above the samples
 uniform uint slices;  // depth slices per tile (ptsv_volume.glsl); > 1: a root above the levels
@@ -15,17 +17,19 @@ layout(location = 0) out float visibility;
 float lit(ivec2 texel) {
     uvec2 s = uvec2(clamp(texel, ivec2(0), ivec2(mask_size) - 1));
     uint index = s.y * mask_size.x + s.x;
-    if (marks[index] != 0u) return 0.0;
-    uint slice = slices > 1u ? sample_slices[index] : 0u;
+    if (texelFetch(mark_texels, int(index)).x != 0u) return 0.0;
+    uint slice = slices > 1u ? texelFetch(slice_texels, int(index)).x : 0u;
     uint first = mask_size.x * mask_size.y;  // the level's first mark
     uvec2 size = mask_size;
     for (int k = 1; k <= levels; ++k) {
         s /= uint(TILE);
         size = (size + uint(TILE) - 1u) / uint(TILE);
-        if (marks[first + (slice * size.y + s.y) * size.x + s.x] != 0u) return 0.0;
+        if (texelFetch(mark_texels, int(first + (slice * size.y + s.y) * size.x + s.x)).x != 0u) {
+            return 0.0;
+        }
         first += size.x * size.y * slices;
     }
-    return slices > 1u && marks[first] != 0u ? 0.0 : 1.0;
+    return slices > 1u && texelFetch(mark_texels, int(first)).x != 0u ? 0.0 : 1.0;
 }
 
 void main() {
