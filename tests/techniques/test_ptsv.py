@@ -31,10 +31,11 @@ Broken versions each test was run against once (and failed):
 import numpy as np
 import pytest
 from helpers import ROOT, SCENE_FILE, assert_bad_setting_exits_2, render_once
+from OpenGL import GL
 
 from harness import config, metrics
 from harness.scene import load_scene
-from harness.technique import Frame
+from harness.technique import Frame, reset_gl_state
 from techniques.ptsv import PerTriangleShadowVolumes
 from techniques.sv.sv import ShadowVolumes
 
@@ -231,3 +232,53 @@ def test_batches_when_the_queues_are_full(frames, monkeypatch):
     batched = _render(PerTriangleShadowVolumes, frame)
     assert whole.extra["traversal_batches"] == 1 and batched.extra["traversal_batches"] > 1
     assert np.array_equal(whole.visibility, batched.visibility)
+
+
+def _read_storage(buffer: int, dtype, count: int) -> np.ndarray:
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
+    data = np.frombuffer(GL.glGetBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0,
+                                               count * np.dtype(dtype).itemsize), dtype).copy()
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+    return data
+
+
+def test_cluster_boxes_bound_their_samples(frames):
+    """Clusters on pins, built on a box buffer filled with junk (1e6): every level-1 and level-2
+    node's box (a 2x2 or 4x4 block of samples, one depth slice) is the bounds of its samples in
+    that slice, exactly, and empty (min > max) where the slice holds none. Broken version run
+    against it once: level 1 writing only the boxes of slices that hold a sample (the empty ones
+    left as they were): fails (junk boxes); V stays right (test_same_v_as_sv: a junk box only
+    adds tests)."""
+    frame = frames(SCENE_FILE, "pins")
+    technique = PerTriangleShadowVolumes(PerTriangleShadowVolumes.Params())
+    technique.prepare(frame)
+    try:
+        h = technique.hierarchy
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, h.boxes)
+        GL.glClearBufferData(GL.GL_SHADER_STORAGE_BUFFER, GL.GL_R32F, GL.GL_RED, GL.GL_FLOAT,
+                             np.array([1e6], np.float32))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        origin = technique._origin(frame)
+        h.build(frame.gbuffer.position_texture, origin, *technique._depths(frame))
+        (w, ht), (w1, h1), (w2, h2) = h.sizes[:3]
+        slices = _read_storage(h.sample_slices, np.uint32, w * ht).reshape(ht, w)
+        boxes = _read_storage(h.boxes, np.float32, h.nodes * 8).reshape(-1, 2, 4)[..., :3]
+        # the samples as the GPU takes them: GL rows (bottom up), relative to the origin
+        position = (frame.arrays.position[::-1] - origin).astype(np.float32)
+        covered = frame.arrays.covered[::-1]
+        assert covered.any() and len(np.unique(slices[covered])) > 3
+        for level, (lw, lh), block in ((1, (w1, h1), 2), (2, (w2, h2), 4)):
+            for y in range(lh):
+                for x in range(lw):
+                    area = (slice(y * block, (y + 1) * block), slice(x * block, (x + 1) * block))
+                    for s in range(h.slices):
+                        points = position[area][covered[area] & (slices[area] == s)]
+                        lo, hi = boxes[h.node_first[level] + (s * lh + y) * lw + x]
+                        if len(points) == 0:
+                            assert (lo > hi).any()
+                        else:
+                            assert np.array_equal(lo, points.min(axis=0))
+                            assert np.array_equal(hi, points.max(axis=0))
+    finally:
+        technique.release()
+        reset_gl_state()
