@@ -212,10 +212,11 @@ def test_spot_light_volumes_are_bounded_across_the_light(frames):
     ("{tile: 6}", "ptsv.tile: must be a power of two, got 6"),
     ("{tile: 32}", "ptsv.tile: Input should be less than or equal to 16"),
     ("{tile: 1}", "ptsv.tile: Input should be greater than or equal to 2"),
+    ("{quads: maybe}", "ptsv.quads: Input should be a valid boolean"),
 ])
 def test_bad_parameters_exit_2(tmp_path, capsys, setting, message):
-    """An unknown hierarchy, a tile not a power of two or out of 2..16: exit 2, one line naming
-    the file and the key, nothing written."""
+    """An unknown hierarchy, a tile not a power of two or out of 2..16, slices out of 2..64,
+    quads not a boolean: exit 2, one line naming the file and the key, nothing written."""
     assert_bad_setting_exits_2(tmp_path, capsys, "ptsv", setting, message)
 
 
