@@ -38,6 +38,7 @@ MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the casters 
 ITEM_BYTES = 8  # (volume, node)
 PLANES_BYTES = 96  # six vec4 per volume: five planes, its bounds across the light
 BOX_BYTES = 32
+NORMAL_UNIT = 8  # the G-buffer's normals, for the box pass (past TEXELS' units)
 CASTER_BYTES = 20  # four corner indices and the closed part's side
 
 
@@ -245,12 +246,17 @@ class SampleHierarchy:
             program.set(**{name: TEXELS[name][0]})
         GL.glActiveTexture(GL.GL_TEXTURE0)
 
-    def build(self, position: Texture, origin: np.ndarray, depth_plane: np.ndarray,
-              depth_range: tuple[float, float]) -> None:
+    def build(self, position: Texture, normal: Texture, origin: np.ndarray,
+              depth_plane: np.ndarray, depth_range: tuple[float, float],
+              camera_position: np.ndarray, light: np.ndarray) -> None:
         """Each level's node boxes from the G-buffer's positions (relative to ``origin``),
-        bottom up. With clusters, a sample's slice is its view depth (``depth_plane`` . (p, 1),
-        p relative to ``origin``) on a log scale over ``depth_range``, cut in ``slices``."""
+        bottom up; the samples' marks cleared, then set where a covered sample's visible side
+        (its ``normal`` turned toward ``camera_position``) faces away from ``light``
+        (homogeneous), which is left out of the boxes. With clusters, a sample's slice is its
+        view depth (``depth_plane`` . (p, 1), p relative to ``origin``) on a log scale over
+        ``depth_range``, cut in ``slices``."""
         self._bind()
+        _zero(self.marks)
         near, far = depth_range
         scale = self.slices / np.log(max(far / near, 1.0 + 1e-6))
         for program in self.box_programs.values():
@@ -258,7 +264,10 @@ class SampleHierarchy:
                               box_texels=TEXELS["box_texels"][0],
                               origin=np.asarray(origin, np.float32),
                               depth_plane=np.asarray(depth_plane, np.float32),
-                              slice_map=np.array([scale, -np.log(near) * scale], np.float32))
+                              slice_map=np.array([scale, -np.log(near) * scale], np.float32),
+                              gbuffer_normal=normal.bind(NORMAL_UNIT),
+                              camera_position=np.asarray(camera_position, np.float32),
+                              light_vector=np.asarray(light, np.float32))
             _set(program, slices=self.slices)
         for level in range(1, self.levels + 1):
             (w, h), (cw, ch) = self.sizes[level], self.sizes[level - 1]
@@ -285,8 +294,8 @@ class SampleHierarchy:
         unless a frame needed more room): a batch whose queues overflowed runs again with room
         (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
         once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
-        counters (read back), summed over the batches."""
-        _zero(self.marks)
+        counters (read back), summed over the batches. The marks are those :meth:`build`
+        left (it comes first)."""
         across = _across(light, axis, np.asarray(origin, np.float64))
         total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
         self.peak = self.batches = start = 0

@@ -58,7 +58,10 @@ class PerTriangleShadowVolumes(Technique):
     a sample or any node above it was marked. Samples are tested where they are, so open parts,
     triangle soups and the camera inside a shadow need nothing special, and there is no near or
     far plane to clip against. A point exactly on its own triangle's plane (within float32
-    rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it.
+    rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it. A sample whose
+    visible side (its normal turned toward the camera) faces away from the light receives no
+    light whatever shadows it: ``hierarchy`` marks it shadowed (V = 0) and leaves it out of
+    the boxes, as rt casts no ray there (such pixels are never compared).
 
     A caster is a triangle, or with ``quads`` (the default) two triangles that make a planar
     convex quad (each one's longest side the other's, consistently wound, the fourth corner
@@ -179,6 +182,11 @@ class PerTriangleShadowVolumes(Technique):
         toward = frame.scene.bounds.mean(axis=0) - np.asarray(light.position, np.float64)
         return toward if np.linalg.norm(toward) > 0 else np.array([0.0, 0.0, -1.0])
 
+    def _build(self, frame: Frame) -> None:
+        self.hierarchy.build(frame.gbuffer.position_texture, frame.gbuffer.normal_texture,
+                             self._origin(frame), *self._depths(frame),
+                             frame.camera.position, self._light(frame))
+
     def _traverse(self, frame: Frame, count: bool = False) -> np.ndarray:
         mesh = frame.geometry
         return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo,
@@ -188,7 +196,7 @@ class PerTriangleShadowVolumes(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy
         with frame.measure("hierarchy"):
-            h.build(frame.gbuffer.position_texture, self._origin(frame), *self._depths(frame))
+            self._build(frame)
         with frame.measure("volumes"):
             self._traverse(frame)
         with frame.measure("visibility"):
@@ -214,6 +222,7 @@ class PerTriangleShadowVolumes(Technique):
         if key == self.counted_for:
             return
         self.counted_for = key
+        self._build(frame)  # the marks cleared (and the unreached samples marked) again
         self.work = self.hierarchy.counts(self._traverse(frame, count=True))
 
     def release(self) -> None:

@@ -43,6 +43,10 @@ void main() {
             uvec2 child = node * uint(TILE) + uvec2(x, y);
             if (any(greaterThanEqual(child, child_size))) continue;
             vec4 p = sample_position(child);
+            if (p.w > 0.5 && !receives_light(child)) {
+                marks[child.y * child_size.x + child.x] = 1u;
+                p.w = 0.0;
+            }
             uint s = p.w < 0.5 ? 0u : depth_slice(p.xyz);
             sample_slices[child.y * child_size.x + child.x] = s;
             if (p.w < 0.5) continue;
@@ -59,6 +63,10 @@ void main() {
 #ifdef SAMPLES
             vec4 p = sample_position(child);
             if (p.w < 0.5) continue;
+            if (!receives_light(child)) {
+                marks[child.y * child_size.x + child.x] = 1u;
+                continue;
+            }
             lo = min(lo, p.xyz);
             hi = max(hi, p.xyz);
 #else

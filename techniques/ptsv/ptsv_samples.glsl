@@ -10,6 +10,24 @@ vec4 sample_position(uvec2 s) {
     return vec4(p.xyz - origin, p.w);
 }
 
+#ifdef SAMPLES
+// Whether a covered sample receives the light: its visible side (the normal turned toward the
+// camera) faces the light. One that does not receives none, whatever shadows it: the box pass
+// marks it shadowed and leaves it out of the boxes, as rt casts no ray there and as engines
+// skip it (harness.metrics' receives_light: such pixels are never compared).
+uniform sampler2D gbuffer_normal;
+uniform vec3 camera_position;  // world space, as the G-buffer's positions
+uniform vec4 light_vector;  // (position, 1) for a spot or point light, (-direction, 0) directional
+
+bool receives_light(uvec2 s) {
+    ivec2 pixel = min(ivec2(s) * divisor + divisor / 2, textureSize(gbuffer_position, 0) - 1);
+    vec3 p = texelFetch(gbuffer_position, pixel, 0).xyz;
+    vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
+    n = dot(n, camera_position - p) >= 0.0 ? n : -n;
+    return dot(n, light_vector.xyz - p * light_vector.w) > 0.0;
+}
+#endif
+
 // Clusters (`slices` > 1): a covered sample's depth slice, its view depth quantised in log scale
 // between the nearest and farthest view depths of the scene's bounds (slices at either end take
 // what lies beyond); the box pass stores it per sample, which the traversal and V then read.
