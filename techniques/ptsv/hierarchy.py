@@ -72,6 +72,16 @@ def _storage(nbytes: int) -> int:
     return buffer
 
 
+def _upload(data: np.ndarray) -> int:
+    """A storage buffer holding ``data``."""
+    data = np.ascontiguousarray(data)
+    buffer = _storage(data.nbytes)
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
+    GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, data.nbytes, data)
+    GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+    return buffer
+
+
 def _zero(buffer: int) -> None:
     GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, buffer)
     GL.glClearBufferData(GL.GL_SHADER_STORAGE_BUFFER, GL.GL_R32UI, GL.GL_RED_INTEGER,
@@ -187,16 +197,9 @@ class SampleHierarchy:
                                      ("slice_texels", self.sample_slices,
                                       self.samples * 4 if slices > 1 else 0)):
             _texels(self.textures[name], name, buffer, nbytes)
-        self.closed_side = _storage(closed_side.nbytes)  # ptsv_setup.comp.glsl's, per caster
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.closed_side)
-        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, closed_side.nbytes,
-                           np.ascontiguousarray(closed_side, np.int32))
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
-        self.casters = _storage(casters.nbytes)
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.casters)
-        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, casters.nbytes,
-                           np.ascontiguousarray(casters, np.uint32))
-        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        # ptsv_setup.comp.glsl's, per caster
+        self.closed_side = _upload(np.asarray(closed_side, np.int32))
+        self.casters = _upload(np.asarray(casters, np.uint32))
         _texels(self.textures["caster_texels"], "caster_texels", self.casters, casters.nbytes)
         self.capacity = self.volume_capacity = 0
         self.queues = self.planes = None
@@ -259,13 +262,13 @@ class SampleHierarchy:
         _zero(self.marks)
         near, far = depth_range
         scale = self.slices / np.log(max(far / near, 1.0 + 1e-6))
+        units = dict(gbuffer_position=position.bind(0), gbuffer_normal=normal.bind(NORMAL_UNIT))
         for program in self.box_programs.values():
-            program.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
+            program.use().set(**units, divisor=self.divisor,
                               box_texels=TEXELS["box_texels"][0],
                               origin=np.asarray(origin, np.float32),
                               depth_plane=np.asarray(depth_plane, np.float32),
                               slice_map=np.array([scale, -np.log(near) * scale], np.float32),
-                              gbuffer_normal=normal.bind(NORMAL_UNIT),
                               camera_position=np.asarray(camera_position, np.float32),
                               light_vector=np.asarray(light, np.float32))
             _set(program, slices=self.slices)
@@ -289,11 +292,10 @@ class SampleHierarchy:
         """Mark the samples and nodes inside the casters' volumes (their corners index
         ``vertices``, the scene mesh's vertex buffer) for ``light`` (homogeneous), positions
         taken relative to ``origin`` (float32, near the scene); ``axis``, a direction the
-        light's rays take
-        (ptsv_volume.glsl's cross-section bounds). The casters go in batches (all at once
-        unless a frame needed more room): a batch whose queues overflowed runs again with room
-        (marks only ever go from lit to shadowed, so a batch run twice marks what it marks
-        once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
+        light's rays take (ptsv_volume.glsl's cross-section bounds). The casters go in batches
+        (all at once unless a frame needed more room): a batch whose queues overflowed runs
+        again with room (marks only ever go from lit to shadowed, so a batch run twice marks
+        what it marks once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
         counters (read back), summed over the batches. The marks are those :meth:`build`
         left (it comes first)."""
         across = _across(light, axis, np.asarray(origin, np.float64))
@@ -376,9 +378,9 @@ class SampleHierarchy:
 
     def release(self) -> None:
         GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
-        GL.glDeleteBuffers(8, [self.boxes, self.marks, self.counters, self.dispatch,
-                               self.queues, self.planes, self.closed_side, self.sample_slices])
-        GL.glDeleteBuffers(1, [self.casters])
+        GL.glDeleteBuffers(9, [self.boxes, self.marks, self.counters, self.dispatch,
+                               self.queues, self.planes, self.closed_side, self.sample_slices,
+                               self.casters])
         for program in (*self.box_programs.values(), self.dispatch_program,
                         *self.setup_programs.values(), *self.traverse_programs.values()):
             program.release()

@@ -11,10 +11,9 @@ vec4 sample_position(uvec2 s) {
 }
 
 #ifdef SAMPLES
-// Whether a covered sample receives the light: its visible side (the normal turned toward the
-// camera) faces the light. One that does not receives none, whatever shadows it: the box pass
-// marks it shadowed and leaves it out of the boxes, as rt casts no ray there and as engines
-// skip it (harness.metrics' receives_light: such pixels are never compared).
+// Whether a covered sample receives the light (common/receives_light.glsl): one that does not
+// the box pass marks shadowed and leaves out of the boxes, as rt casts no ray there.
+#include "../common/receives_light.glsl"
 uniform sampler2D gbuffer_normal;
 uniform vec3 camera_position;  // world space, as the G-buffer's positions
 uniform vec4 light_vector;  // (position, 1) for a spot or point light, (-direction, 0) directional
@@ -22,9 +21,8 @@ uniform vec4 light_vector;  // (position, 1) for a spot or point light, (-direct
 bool receives_light(uvec2 s) {
     ivec2 pixel = min(ivec2(s) * divisor + divisor / 2, textureSize(gbuffer_position, 0) - 1);
     vec3 p = texelFetch(gbuffer_position, pixel, 0).xyz;
-    vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
-    n = dot(n, camera_position - p) >= 0.0 ? n : -n;
-    return dot(n, light_vector.xyz - p * light_vector.w) > 0.0;
+    return faces_light(p, visible_side(texelFetch(gbuffer_normal, pixel, 0).xyz, p,
+                                       camera_position), light_vector);
 }
 #endif
 

@@ -24,6 +24,7 @@ uniform vec3 light;               // directional: unit vector towards the light;
 uniform vec3 camera_position;
 
 #include "rt_offset.glsl"
+#include "../common/receives_light.glsl"
 #include "rt_watertight.glsl"
 
 uint bits(float f) { return floatBitsToUint(f); }
@@ -139,14 +140,11 @@ void main() {
     float v = 1.0;
     uint visited = 0u, tested = 0u;
     if (p.w > 0.5) {
-        // the visible side (the normal turned to the camera) facing away from the light
-        // receives no light: V = 0 and no ray, as engines skip it (harness.metrics'
-        // receives_light: such pixels are never compared)
-        vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
-        n = dot(n, camera_position - p.xyz) >= 0.0 ? n : -n;
-        vec3 to_light = directional ? light : light - p.xyz;
+        // the visible side facing away from the light receives no light: V = 0 and no ray,
+        // as engines skip it
+        vec3 n = visible_side(texelFetch(gbuffer_normal, pixel, 0).xyz, p.xyz, camera_position);
         v = 0.0;
-        if (dot(n, to_light) > 0.0) {
+        if (faces_light(p.xyz, n, vec4(light, directional ? 0.0 : 1.0))) {
             vec3 origin = offset_ray(p.xyz, n);
             vec3 dir = directional ? light : light - origin;
             float tmax = directional ? 3.0e38 : 1.0;
