@@ -9,9 +9,12 @@ clusters (``slices`` > 1, Sintorn et al. 2014) each level holds that grid once p
 level's slices. Node numbers run level 1 first, slice-major within a level; the marks buffer
 holds one flag per sample, then one per node. The traversal queues (volume, node) items in two
 regions used in turn (level k in region k & 1), each of ``capacity`` items; the planes buffer
-holds the queued casters' volumes. Both grow when a frame overflows them (counted on the GPU,
-read back once after the traversal, which then runs again with room): memory follows the scene
-instead of a worst case.
+holds the queued casters' volumes. A volume whose footprint on the screen at most 2 x 2 nodes of
+a lower level cover starts there (ptsv_setup.comp.glsl): its (volume, slice) seeds, sorted by
+level (counted, then placed), are tested just before their level's traversal
+(ptsv_seed.comp.glsl). The queues, planes and seeds grow when a frame overflows them (counted
+on the GPU, read back once after the traversal, which then runs again with room): memory follows
+the scene instead of a worst case.
 """
 
 from __future__ import annotations
@@ -30,13 +33,15 @@ HERE = Path(__file__).parent
 # sample-volume tests (each of one caster's volume against one view sample); triangles_culled
 # counts a culled quad's two triangles
 COUNTER_NAMES = ("volumes_queued", "triangles_culled", "traversal_nodes", "trivial_accepts",
-                 "root_accepts", "triangle_tests")
+                 "root_accepts", "triangle_tests", "volumes_seeded")
 COUNT_LEVELS = 8
 EDGE_ON = 1e-12  # |cos| between a triangle's normal and the light below which it casts nothing
 MIN_CAPACITY = 1 << 14
 MAX_CAPACITY = 1 << 22  # items per queue region (32 MiB): past it, the casters go in batches
 ITEM_BYTES = 8  # (volume, node)
 PLANES_BYTES = 96  # six vec4 per volume: five planes, its bounds across the light
+START_BYTES = 16  # per volume: its start level, the nodes' ranges there (ptsv_setup.comp.glsl)
+SEED_BYTES = 8  # (volume, slice) per depth slice of a volume's start (ptsv_seed.comp.glsl)
 BOX_BYTES = 32
 NORMAL_UNIT = 8  # the G-buffer's normals, for the box pass (past TEXELS' units)
 CASTER_BYTES = 20  # four corner indices and the closed part's side
@@ -166,6 +171,7 @@ class SampleHierarchy:
         self.nodes = self.root + 1
         self.items_per_group = 64  # the traversal's: one invocation per queued item
         defines = {"TILE": tile, "GROUP_SIZE": self.items_per_group, "EDGE_ON": repr(EDGE_ON),
+                   "LEVELS": f"{self.levels}u",
                    **({"POSITIONAL_LIGHT": 1} if positional else {})}
 
         def program(name, **more):
@@ -181,6 +187,10 @@ class SampleHierarchy:
         # the timed programs, and the same counting their work for the untimed repeat
         self.setup_programs = {c: program("ptsv_setup.comp.glsl", **({"COUNT": 1} if c else {}))
                                for c in (False, True)}
+        self.seed_programs = {c: program("ptsv_seed.comp.glsl", **({"COUNT": 1} if c else {}))
+                              for c in (False, True)}
+        self.seed_offsets = program("ptsv_seed.comp.glsl", OFFSETS=1)
+        self.seed_scatter = program("ptsv_seed.comp.glsl", SCATTER=1)
         # per (counting, level 1): level 1 tests samples, the levels above nodes
         self.traverse_programs = {(c, leaf): program("ptsv_traverse.comp.glsl",
                                                      **({"COUNT": 1} if c else {}),
@@ -189,7 +199,8 @@ class SampleHierarchy:
         self.boxes = _storage(self.nodes * BOX_BYTES)
         self.textures = dict(zip(TEXELS, GL.glGenTextures(len(TEXELS))))
         self.marks = _storage((self.samples + self.nodes) * 4)
-        self.counters = _storage((COUNT_LEVELS + self.levels + 1) * 4)
+        self.counter_count = COUNT_LEVELS + 3 * (self.levels + 1)
+        self.counters = _storage(self.counter_count * 4)
         self.dispatch = _storage(12)
         self.sample_slices = _storage(self.samples * 4 if slices > 1 else 0)
         for name, buffer, nbytes in (("box_texels", self.boxes, self.nodes * BOX_BYTES),
@@ -202,7 +213,10 @@ class SampleHierarchy:
         self.casters = _upload(np.asarray(casters, np.uint32))
         _texels(self.textures["caster_texels"], "caster_texels", self.casters, casters.nbytes)
         self.capacity = self.volume_capacity = 0
-        self.queues = self.planes = None
+        self.queues = self.planes = self.starts = self.seeds = None
+        self.seed_capacity = 0
+        self.seed_counts = COUNT_LEVELS + self.levels + 1  # counters' index of level 0's seeds
+        self._grow_seeds(max(MIN_CAPACITY, min(self.caster_count, 1 << 20)))
         self._grow(max(MIN_CAPACITY, min(self.caster_count, 1 << 20)),
                    max(MIN_CAPACITY, min(self.caster_count // 4, MAX_CAPACITY)))
         self.batch = self.caster_count  # casters per traversal batch, halved while queues overflow
@@ -212,8 +226,10 @@ class SampleHierarchy:
         """What the hierarchy, marks, volumes and work queues hold."""
         return (self.nodes * BOX_BYTES + (self.samples + self.nodes) * 4
                 + (self.samples * 4 if self.slices > 1 else 0)
-                + 2 * self.capacity * ITEM_BYTES + self.volume_capacity * PLANES_BYTES
-                + (COUNT_LEVELS + self.levels + 1) * 4 + 12 + CASTER_BYTES * self.caster_count)
+                + 2 * self.capacity * ITEM_BYTES
+                + self.volume_capacity * (PLANES_BYTES + START_BYTES)
+                + self.seed_capacity * SEED_BYTES
+                + self.counter_count * 4 + 12 + CASTER_BYTES * self.caster_count)
 
     def _grow(self, capacity: int, volume_capacity: int) -> None:
         if capacity > self.capacity:
@@ -227,9 +243,18 @@ class SampleHierarchy:
             if self.planes:
                 GL.glDeleteBuffers(1, [self.planes])
             self.volume_capacity = volume_capacity
+            if self.starts:
+                GL.glDeleteBuffers(1, [self.starts])
+            self.starts = _storage(volume_capacity * START_BYTES)
             self.planes = _storage(volume_capacity * PLANES_BYTES)
             _texels(self.textures["plane_texels"], "plane_texels", self.planes,
                     volume_capacity * PLANES_BYTES)
+
+    def _grow_seeds(self, capacity: int) -> None:
+        if self.seeds:
+            GL.glDeleteBuffers(1, [self.seeds])
+        self.seed_capacity = capacity
+        self.seeds = _storage(capacity * SEED_BYTES)
 
     def _bind(self) -> None:
         for name, texture in self.textures.items():
@@ -237,7 +262,8 @@ class SampleHierarchy:
             GL.glBindTexture(GL.GL_TEXTURE_BUFFER, texture)
         GL.glActiveTexture(GL.GL_TEXTURE0)
         for binding, buffer in ((2, self.planes), (3, self.boxes), (4, self.marks),
-                                (5, self.queues), (6, self.counters), (9, self.sample_slices)):
+                                (5, self.queues), (6, self.counters), (9, self.sample_slices),
+                                (10, self.starts), (11, self.seeds)):
             GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, buffer)
 
     def bind_marks(self, program) -> None:
@@ -262,13 +288,14 @@ class SampleHierarchy:
         _zero(self.marks)
         near, far = depth_range
         scale = self.slices / np.log(max(far / near, 1.0 + 1e-6))
+        self.depth_uniforms = dict(depth_plane=np.asarray(depth_plane, np.float32),
+                                   slice_map=np.array([scale, -np.log(near) * scale], np.float32))
         units = dict(gbuffer_position=position.bind(0), gbuffer_normal=normal.bind(NORMAL_UNIT))
         for program in self.box_programs.values():
             program.use().set(**units, divisor=self.divisor,
                               box_texels=TEXELS["box_texels"][0],
                               origin=np.asarray(origin, np.float32),
-                              depth_plane=np.asarray(depth_plane, np.float32),
-                              slice_map=np.array([scale, -np.log(near) * scale], np.float32),
+                              **self.depth_uniforms,
                               camera_position=np.asarray(camera_position, np.float32),
                               light_vector=np.asarray(light, np.float32))
             _set(program, slices=self.slices)
@@ -287,26 +314,34 @@ class SampleHierarchy:
             _barrier()
 
     def traverse(self, position: Texture, vertices: int, light: np.ndarray,
-                 axis: np.ndarray, origin: np.ndarray, tie: float,
+                 axis: np.ndarray, origin: np.ndarray, tie: float, view_proj: np.ndarray,
                  count: bool = False) -> np.ndarray:
         """Mark the samples and nodes inside the casters' volumes (their corners index
         ``vertices``, the scene mesh's vertex buffer) for ``light`` (homogeneous), positions
         taken relative to ``origin`` (float32, near the scene); ``axis``, a direction the
-        light's rays take (ptsv_volume.glsl's cross-section bounds). The casters go in batches
-        (all at once unless a frame needed more room): a batch whose queues overflowed runs
-        again with room (marks only ever go from lit to shadowed, so a batch run twice marks
-        what it marks once), or, once the queues are at ``MAX_CAPACITY``, as two halves. Returns the
-        counters (read back), summed over the batches. The marks are those :meth:`build`
-        left (it comes first)."""
-        across = _across(light, axis, np.asarray(origin, np.float64))
-        total = np.zeros(COUNT_LEVELS + self.levels + 1, np.int64)
+        light's rays take (ptsv_volume.glsl's cross-section bounds); ``view_proj``, the
+        camera's, which places each volume's footprint on the screen (where its traversal
+        starts). The casters go in batches (all at once unless a frame needed more room): a
+        batch whose queues or seeds overflowed runs again with room (marks only ever go from
+        lit to shadowed, so a batch run twice marks what it marks once), or, once the queues
+        are at ``MAX_CAPACITY``, as two halves. Returns the counters (read back), summed over
+        the batches. The marks are those :meth:`build` left (it comes first)."""
+        clip = np.array(view_proj, np.float64)  # of positions relative to origin
+        clip[:, 3] += clip[:, :3] @ np.asarray(origin, np.float64)
+        uniforms = dict(_across(light, axis, np.asarray(origin, np.float64)),
+                        clip_from_scene=clip)
+        total = np.zeros(self.counter_count, np.int64)
         self.peak = self.batches = start = 0
         while start < self.caster_count:
             end = min(start + self.batch, self.caster_count)
-            counters = self._traverse_batch(position, vertices, light, across, origin,
+            counters = self._traverse_batch(position, vertices, light, uniforms, origin,
                                             tie, count, start, end)
-            needed = int(counters[COUNT_LEVELS:].max(initial=0))
+            needed = int(counters[COUNT_LEVELS:self.seed_counts].max(initial=0))
             volumes = int(counters[0])
+            seeds = int(counters[self.seed_counts:self.seed_counts + self.levels + 1].sum())
+            if seeds > self.seed_capacity:  # the batch runs again with room
+                self._grow_seeds(1 << max(seeds - 1, 1).bit_length())
+                continue
             if needed <= self.capacity and volumes <= self.volume_capacity:
                 total += counters
                 self.peak = max(self.peak, needed)
@@ -320,7 +355,7 @@ class SampleHierarchy:
                 self.batch = max(1, (end - start) // 2)
         return total
 
-    def _traverse_batch(self, position, vertices, light, across, origin, tie, count,
+    def _traverse_batch(self, position, vertices, light, uniforms, origin, tie, count,
                         start: int, end: int) -> np.ndarray:
         _zero(self.counters)
         # attached every batch: a moved scene's mesh is new buffers, maybe under the old names
@@ -331,16 +366,26 @@ class SampleHierarchy:
         self._bind()
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, self.dispatch)
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 8, self.closed_side)
-        shared = dict(**across, origin=np.asarray(origin, np.float32), tie=float(tie),
+        shared = dict(**uniforms, origin=np.asarray(origin, np.float32), tie=float(tie),
                       capacity=self.capacity, volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
-        setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
+        setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()}, **self.depth_uniforms,
+                  sample_scale=np.array(self.sizes[0], np.float32) * 0.5)
         _set(setup, light_vector=np.asarray(light, np.float32), first_caster=start,
              caster_end=end, root=self.root, root_level=self.levels,
-             top_first=self.node_first[self.levels], **shared)
+             top_first=self.node_first[self.levels], sample_size=self.sizes[0], **shared)
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
+        _set(self.seed_offsets.use(), **shared)
+        GL.glDispatchCompute(1, 1, 1)
+        _barrier()
+        _set(self.seed_scatter.use(), seed_capacity=self.seed_capacity, **shared)
+        GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
+        _barrier()
+        seed = self.seed_programs[count].use()
+        seed.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
+        _set(seed, seed_capacity=self.seed_capacity, **shared)
         for leaf in (False, True):
             traverse = self.traverse_programs[count, leaf]
             traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
@@ -348,8 +393,17 @@ class SampleHierarchy:
             _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):
-            _set(self.dispatch_program.use(), level=level, items_per_group=self.items_per_group,
-                 capacity=self.capacity)
+            if level < self.levels:
+                _set(self.dispatch_program.use(), counter=self.seed_counts + level,
+                     limit=self.seed_capacity, items_per_group=64)
+                GL.glDispatchCompute(1, 1, 1)
+                _barrier()
+                _set(self.seed_programs[count].use(), level=level, node_size=self.sizes[level],
+                     node_first=self.node_first[level])
+                GL.glDispatchComputeIndirect(0)
+                _barrier()
+            _set(self.dispatch_program.use(), counter=COUNT_LEVELS + level,
+                 limit=self.capacity, items_per_group=self.items_per_group)
             GL.glDispatchCompute(1, 1, 1)
             _barrier()
             cw, ch = self.sizes[level - 1]
@@ -361,7 +415,7 @@ class SampleHierarchy:
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, 0)
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.counters)
         counters = np.frombuffer(GL.glGetBufferSubData(
-            GL.GL_SHADER_STORAGE_BUFFER, 0, (COUNT_LEVELS + self.levels + 1) * 4),
+            GL.GL_SHADER_STORAGE_BUFFER, 0, self.counter_count * 4),
             np.uint32).copy()
         GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
         GL.glUseProgram(0)
@@ -378,9 +432,11 @@ class SampleHierarchy:
 
     def release(self) -> None:
         GL.glDeleteTextures(len(self.textures), list(self.textures.values()))
-        GL.glDeleteBuffers(9, [self.boxes, self.marks, self.counters, self.dispatch,
-                               self.queues, self.planes, self.closed_side, self.sample_slices,
-                               self.casters])
+        GL.glDeleteBuffers(11, [self.boxes, self.marks, self.counters, self.dispatch,
+                                self.queues, self.planes, self.starts, self.seeds,
+                                self.closed_side, self.sample_slices, self.casters])
         for program in (*self.box_programs.values(), self.dispatch_program,
-                        *self.setup_programs.values(), *self.traverse_programs.values()):
+                        *self.setup_programs.values(), *self.seed_programs.values(),
+                        self.seed_offsets, self.seed_scatter,
+                        *self.traverse_programs.values()):
             program.release()

@@ -51,7 +51,12 @@ class PerTriangleShadowVolumes(Technique):
     volume (beyond one of its planes, or beyond its caster's bounds on two axes across the
     light: a directional light's direction, or, after a central projection from a spot or point
     light, its axis) is skipped, one inside is marked shadowed whole, any other
-    has its children tested, down to the samples themselves. Work moves between levels in
+    has its children tested, down to the samples themselves. A volume starts below the top: the
+    part of it inside the root's box lies in the hull of its caster and the caster moved along
+    the light's rays to where they leave the box, whose projection on the screen and view depth
+    range (its footprint) give the lowest level at which at most 2 x 2 nodes cover it, and the
+    depth slices; those nodes are tested first and the levels above skipped (a footprint off
+    the screen culls the volume; one behind the camera starts at the top). Work moves between levels in
     queues of (volume, node) items filled by atomics (one per item's queued children) and
     dispatched indirectly; an invocation tests one item's node's children in a loop, whatever
     the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where
@@ -77,7 +82,8 @@ class PerTriangleShadowVolumes(Technique):
     tests: a view sample against one caster's volume; these two are the harness's traversal
     columns, which the cost model prices), ``triangles_culled``
     (edge-on, turned from the light in a closed part, or the root's box outside the volume; a
-    quad's two), ``volumes_queued`` (the casters' volumes that were not),
+    quad's two; or its footprint off the screen), ``volumes_queued`` (the casters' volumes
+    that were not), ``volumes_seeded`` (of those, the ones starting below the top level),
     ``queue_items``, ``queue_peak`` and ``traversal_batches``. No volume is rasterised
     (``frags_shadow`` 0); ``mem_bytes`` holds the boxes, the marks, the samples' slices
     (clusters), the queued volumes and the work queues, which grow when a frame overflows them,
@@ -191,7 +197,8 @@ class PerTriangleShadowVolumes(Technique):
         mesh = frame.geometry
         return self.hierarchy.traverse(frame.gbuffer.position_texture, mesh.vbo,
                                        self._light(frame), self._axis(frame),
-                                       self._origin(frame), self._tie(frame), count)
+                                       self._origin(frame), self._tie(frame),
+                                       frame.camera.view_proj, count)
 
     def render(self, frame: Frame) -> ShadowOutput:
         h = self.hierarchy

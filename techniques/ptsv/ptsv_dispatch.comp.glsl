@@ -5,11 +5,12 @@
 
 layout(local_size_x = 1) in;
 layout(std430, binding = 7) writeonly buffer Dispatch { uint groups[3]; };
-uniform uint level;
+uniform uint counter;  // the counter of the items (at most `limit`) to dispatch
+uniform uint limit;
 uniform uint items_per_group;
 
 void main() {
-    uint items = min(counters[COUNT_LEVELS + level], capacity);
+    uint items = min(counters[counter], limit);
     uint total = (items + items_per_group - 1u) / items_per_group;
     uint rows = (total + 65534u) / 65535u;
     groups[0] = total == 0u ? 0u : (total + rows - 1u) / rows;

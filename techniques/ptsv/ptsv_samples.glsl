@@ -34,7 +34,11 @@ uniform usamplerBuffer slice_texels;  // the same, read as a buffer texture by t
 uniform vec4 depth_plane;  // view depth of a position relative to `origin`: dot(xyz, p) + w
 uniform vec2 slice_map;  // slice = floor(log(depth) * x + y), clamped to 0 .. slices - 1
 
+uint slice_of_depth(float depth) {
+    return uint(clamp(floor(log(max(depth, 1.0e-30)) * slice_map.x + slice_map.y), 0.0,
+                      float(slices - 1u)));
+}
+
 uint depth_slice(vec3 p) {
-    float depth = max(dot(depth_plane.xyz, p) + depth_plane.w, 1.0e-30);
-    return uint(clamp(floor(log(depth) * slice_map.x + slice_map.y), 0.0, float(slices - 1u)));
+    return slice_of_depth(dot(depth_plane.xyz, p) + depth_plane.w);
 }

@@ -29,7 +29,12 @@ layout(std430, binding = 6) buffer Counters { uint counters[]; };
 #define COUNT_ACCEPTS 3u       // nodes found inside a volume and marked whole
 #define COUNT_ROOT_ACCEPTS 4u  // of those, at the root
 #define COUNT_SAMPLE_TESTS 5u  // sample-volume tests at the leaves
+#define COUNT_SEEDED 6u        // volumes whose traversal starts below the top level
 #define COUNT_LEVELS 8u        // counters[COUNT_LEVELS + k]: items queued for level k
+// counters[COUNT_SEEDS + k]: (volume, slice) seeds starting at level k; counters[SEED_FIRST +
+// k]: where their run starts (ptsv_seed.comp.glsl). LEVELS: the levels of nodes.
+#define COUNT_SEEDS (COUNT_LEVELS + LEVELS + 1u)
+#define SEED_FIRST (COUNT_SEEDS + LEVELS + 1u)
 
 uniform vec3 origin;
 // A volume's cross-section lies within its caster's bounds on two unit axes across the
