@@ -121,6 +121,9 @@ TEXELS = {"box_texels": (1, GL.GL_RGBA32F, 16), "plane_texels": (2, GL.GL_RGBA32
           "caster_texels": (7, GL.GL_RGBA32UI, 16)}
 
 
+TEXEL_UNITS = {name: unit for name, (unit, _, _) in TEXELS.items()}  # the samplers' uniforms
+
+
 def _texels(texture: int, name: str, buffer: int, nbytes: int) -> None:
     """Make ``texture`` the buffer texture ``name`` (TEXELS) over storage ``buffer``."""
     _, texel_format, texel_bytes = TEXELS[name]
@@ -216,8 +219,9 @@ class SampleHierarchy:
         self.queues = self.planes = self.starts = self.seeds = None
         self.seed_capacity = 0
         self.seed_counts = COUNT_LEVELS + self.levels + 1  # counters' index of level 0's seeds
-        self._grow_seeds(max(MIN_CAPACITY, min(self.caster_count, 1 << 20)))
-        self._grow(max(MIN_CAPACITY, min(self.caster_count, 1 << 20)),
+        first_capacity = max(MIN_CAPACITY, min(self.caster_count, 1 << 20))
+        self._grow_seeds(first_capacity)
+        self._grow(first_capacity,
                    max(MIN_CAPACITY, min(self.caster_count // 4, MAX_CAPACITY)))
         self.batch = self.caster_count  # casters per traversal batch, halved while queues overflow
 
@@ -370,7 +374,7 @@ class SampleHierarchy:
                       capacity=self.capacity, volume_capacity=self.volume_capacity, sample_count=self.samples,
                       slices=self.slices)
         setup = self.setup_programs[count].use()
-        setup.set(**{name: unit for name, (unit, _, _) in TEXELS.items()}, **self.depth_uniforms,
+        setup.set(**TEXEL_UNITS, **self.depth_uniforms,
                   sample_scale=np.array(self.sizes[0], np.float32) * 0.5)
         _set(setup, light_vector=np.asarray(light, np.float32), first_caster=start,
              caster_end=end, root=self.root, root_level=self.levels,
@@ -384,12 +388,12 @@ class SampleHierarchy:
         GL.glDispatchCompute(*_rows(-(-(end - start) // 64)), 1)
         _barrier()
         seed = self.seed_programs[count].use()
-        seed.set(**{name: unit for name, (unit, _, _) in TEXELS.items()})
+        seed.set(**TEXEL_UNITS)
         _set(seed, seed_capacity=self.seed_capacity, **shared)
         for leaf in (False, True):
             traverse = self.traverse_programs[count, leaf]
             traverse.use().set(gbuffer_position=position.bind(0), divisor=self.divisor,
-                               **{name: unit for name, (unit, _, _) in TEXELS.items()})
+                               **TEXEL_UNITS)
             _set(traverse, **shared)
         GL.glBindBuffer(GL.GL_DISPATCH_INDIRECT_BUFFER, self.dispatch)
         for level in range(self.levels, 0, -1):

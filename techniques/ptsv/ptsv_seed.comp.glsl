@@ -53,18 +53,7 @@ void main() {
         uvec2 at = first + uvec2(c & 1u, c >> 1);
         if (any(greaterThan(at, last))) continue;
         uint node = seed.y * tiles + at.y * node_size.x + at.x;
-        if (texelFetch(mark_texels, int(sample_count + node_first + node)).x != 0u) continue;
-        vec3 lo, hi;
-        node_box(node_first + node, lo, hi);
-        if (any(greaterThan(lo, hi))) continue;
-        TALLY(COUNT_NODE_TESTS);
-        int test = classify(volume, lo, hi);
-        if (test > 0) {
-            mark_node(node_first + node);
-            TALLY(COUNT_ACCEPTS);
-        } else if (test == 0) {
-            push(level, seed.x, node);
-        }
+        if (test_node(volume, node_first + node) == 0) push(level, seed.x, node);
     }
 #endif
 #endif

@@ -4,8 +4,9 @@
 // cast no volume (as sv's per-triangle volumes), nor do a closed part's casters turned from the
 // light; every other caster casts, turned toward the light (an open part's back-facing
 // triangle shadows as much as a front-facing one). A volume the root box lies outside of, or
-// whose footprint misses the screen, is culled; one that holds the root box marks the root; any other is queued, and its traversal
-// starts where its footprint on the screen fits (footprint below): at the top level (with
+// whose footprint misses the screen, is culled; one that holds the root box marks the root;
+// any other is queued, and its traversal starts where its footprint on the screen fits
+// (footprint below): at the top level (with
 // clusters, the root's children, one per depth slice of the footprint, are tested here and
 // queued for the level below theirs), or, where at most 2 x 2 nodes of a lower level cover it,
 // at those nodes, which ptsv_seed.comp.glsl tests (the levels above are skipped).
@@ -194,15 +195,6 @@ void main() {
     }
     // clusters: the root's children, the top level's slices, here
     for (uint slice = start.w & 0xFFFFu; slice <= start.w >> 16; ++slice) {
-        node_box(top_first + slice, lo, hi);
-        if (any(greaterThan(lo, hi))) continue;
-        TALLY(COUNT_NODE_TESTS);
-        test = classify(volume, lo, hi);
-        if (test > 0) {
-            mark_node(top_first + slice);
-            TALLY(COUNT_ACCEPTS);
-        } else if (test == 0) {
-            push(root_level, queued, slice);
-        }
+        if (test_node(volume, top_first + slice) == 0) push(root_level, queued, slice);
     }
 }

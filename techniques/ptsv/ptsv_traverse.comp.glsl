@@ -50,17 +50,7 @@ void main() {
         if (c % 32u == 0u) partial[c / 32u] = 0u;
         uvec2 child = first + uvec2(c % TILE, c / TILE);
         if (any(greaterThanEqual(child, child_size))) continue;
-        uint node = child_first + base + child.y * child_size.x + child.x;
-        if (texelFetch(mark_texels, int(sample_count + node)).x != 0u) continue;  // shadowed whole already
-        vec3 lo, hi;
-        node_box(node, lo, hi);
-        if (any(greaterThan(lo, hi))) continue;
-        TALLY(COUNT_NODE_TESTS);
-        int test = classify(volume, lo, hi);
-        if (test > 0) {
-            mark_node(node);
-            TALLY(COUNT_ACCEPTS);
-        } else if (test == 0) {
+        if (test_node(volume, child_first + base + child.y * child_size.x + child.x) == 0) {
             partial[c / 32u] |= 1u << (c % 32u);
             ++queue;
         }

@@ -150,6 +150,22 @@ void mark_node(uint node) {
     marks[sample_count + node] = 1u;
 }
 
+// Node `node` against a volume: -2 where it is skipped (marked shadowed whole already, or
+// empty), else classify's answer, the node marked where it lies inside (counted).
+int test_node(vec4 volume[VOLUME_ROWS], uint node) {
+    if (texelFetch(mark_texels, int(sample_count + node)).x != 0u) return -2;
+    vec3 lo, hi;
+    node_box(node, lo, hi);
+    if (any(greaterThan(lo, hi))) return -2;
+    TALLY(COUNT_NODE_TESTS);
+    int test = classify(volume, lo, hi);
+    if (test > 0) {
+        mark_node(node);
+        TALLY(COUNT_ACCEPTS);
+    }
+    return test;
+}
+
 // Queue (volume, node) for level `level` (region level & 1); counted even past the capacity,
 // so the caller sees an overflow and runs the traversal again with room for it.
 void push(uint level, uint volume, uint node) {
