@@ -96,8 +96,8 @@ class PerTriangleShadowVolumes(Technique):
     ``hierarchy``   ``clusters``: bounds per screen tile and depth        clusters
                     slice; ``tiles``: per screen tile (cheaper to
                     build; slower where depth varies within a tile)
-    ``tile``        children per node along each axis (a power of two)    2        2 .. 16
-    ``slices``      depth slices per tile (clusters only; log depth)      16       2 .. 64
+    ``tile``        children per node along each axis (a power of two)    4        2 .. 16
+    ``slices``      depth slices per tile (clusters only; log depth)      32       2 .. 64
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
                     magnification, as sv)
@@ -111,16 +111,16 @@ class PerTriangleShadowVolumes(Technique):
     paper = ("Sintorn, Olsson, Assarsson 2011, An efficient alias-free shadow algorithm for "
              "opaque and transparent objects using per-triangle shadow volumes")
     # quality knob: the samples' resolution (error for time), its two ends, to keep make bench
-    # within its 10 minutes. The tile size changes the cost only, never V: experiments/scale.yaml
-    # walks it.
+    # within its 10 minutes. The tile and the slices change the cost only, never V (their
+    # defaults, tile 4 and 32 slices, measured against tile 2 and 16: docs/techniques.md).
     quality_knobs = {"mask_res": ("quarter", "full")}
     declines_lights = {}  # a volume is the same four planes for every light type
     rivals = ("sv", "rt")  # the other exact methods: volumes with fill, rays
 
     class Params(TechniqueParams):
         hierarchy: Literal["tiles", "clusters"] = "clusters"
-        tile: int = Field(2, ge=2, le=16)
-        slices: int = Field(16, ge=2, le=64)
+        tile: int = Field(4, ge=2, le=16)
+        slices: int = Field(32, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
         quads: bool = True
 
