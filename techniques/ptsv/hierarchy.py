@@ -412,7 +412,8 @@ class SampleHierarchy:
             _barrier()
             cw, ch = self.sizes[level - 1]
             _set(self.traverse_programs[count, level == 1].use(), level=level,
-                 node_size=self.sizes[level], child_size=(cw, ch),
+                 node_first=self.node_first[level], node_size=self.sizes[level],
+                 child_size=(cw, ch),
                  child_first=self.node_first[level - 1] if level > 1 else 0)
             GL.glDispatchComputeIndirect(0)
             _barrier()

@@ -96,7 +96,8 @@ class PerTriangleShadowVolumes(Technique):
     ``hierarchy``   ``clusters``: bounds per screen tile and depth        clusters
                     slice; ``tiles``: per screen tile (cheaper to
                     build; slower where depth varies within a tile)
-    ``tile``        children per node along each axis (a power of two)    4        2 .. 16
+    ``tile``        children per node along each axis (a power of two:    4        2 .. 4
+                    a node's children are bits of one 32-bit word)
     ``slices``      depth slices per tile (clusters only; log depth)      32       2 .. 64
     ``mask_res``    ``full``, ``half`` or ``quarter`` (the samples: one   full
                     pixel per 1, 2 or 4 along each axis; bilinear
@@ -119,7 +120,7 @@ class PerTriangleShadowVolumes(Technique):
 
     class Params(TechniqueParams):
         hierarchy: Literal["tiles", "clusters"] = "clusters"
-        tile: int = Field(4, ge=2, le=16)
+        tile: int = Field(4, ge=2, le=4)
         slices: int = Field(32, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
         quads: bool = True

@@ -1,7 +1,9 @@
 // The hierarchy over the view samples, one level per dispatch: each node's box is the
 // axis-aligned bounds (world space) of its TILE x TILE children, samples for level 1 (their
 // G-buffer positions, covered ones only), nodes of the level below otherwise. A node without a
-// covered sample gets an empty box (lo > hi), which every test skips. With clusters
+// covered sample gets an empty box (lo > hi), which every test skips. The box's fourth lane
+// (lo.w) holds, as bits, which of its children are not empty (bit y * TILE + x; at level 1 the
+// samples it bounds): the traversal visits only those (ptsv_traverse.comp.glsl). With clusters
 // (`slices` > 1) a node is one depth slice of its tile: its box bounds that slice's samples or
 // child nodes only. At level 1 one invocation takes a tile's every slice (each sample read
 // once, its slice stored and its position added to its slice's box); above it, one invocation
@@ -18,10 +20,15 @@ uniform uvec2 child_size;
 uniform uint node_first;  // node number of this level's first node
 uniform uint child_first;  // of the level below's (level > 1)
 
+uint child_bit(uint x, uint y) {
+    return 1u << (y * uint(TILE) + x);
+}
+
 void main() {
     uvec2 node = gl_GlobalInvocationID.xy;
     if (any(greaterThanEqual(node, node_size))) return;
     vec3 lo = vec3(3.0e38), hi = vec3(-3.0e38);
+    uint children = 0u;  // the children that are not empty, a bit each
     uint tiles = node_size.x * node_size.y, tile = node.y * node_size.x + node.x;
 #if defined(MERGE_SLICES)
     // the root: node_first's box over child_first's `slices` nodes
@@ -51,7 +58,9 @@ void main() {
             sample_slices[child.y * child_size.x + child.x] = s;
             if (p.w < 0.5) continue;
             uint index = 2u * (node_first + s * tiles + tile);
-            boxes[index] = vec4(min(boxes[index].xyz, p.xyz), 0.0);
+            boxes[index] = vec4(min(boxes[index].xyz, p.xyz),
+                                uintBitsToFloat(floatBitsToUint(boxes[index].w)
+                                                | child_bit(x, y)));
             boxes[index + 1u] = vec4(max(boxes[index + 1u].xyz, p.xyz), 0.0);
         }
     }
@@ -69,6 +78,7 @@ void main() {
             }
             lo = min(lo, p.xyz);
             hi = max(hi, p.xyz);
+            children |= child_bit(x, y);
 #else
             uint slice = gl_GlobalInvocationID.z;
             uint index = child_first + (slice * child_size.y + child.y) * child_size.x + child.x;
@@ -76,11 +86,12 @@ void main() {
             node_box(index, child_lo, child_hi);
             lo = min(lo, child_lo);
             hi = max(hi, child_hi);
+            if (all(lessThanEqual(child_lo, child_hi))) children |= child_bit(x, y);
 #endif
         }
     }
     uint index = node_first + gl_GlobalInvocationID.z * tiles + tile;
-    boxes[2u * index] = vec4(lo, 0.0);
+    boxes[2u * index] = vec4(lo, uintBitsToFloat(children));
     boxes[2u * index + 1u] = vec4(hi, 0.0);
 #endif
 }

@@ -146,6 +146,12 @@ void node_box(uint node, out vec3 lo, out vec3 hi) {
     hi = texelFetch(box_texels, 2 * int(node) + 1).xyz;
 }
 
+// Which of a node's TILE x TILE children are not empty, a bit each (y * TILE + x; at level 1
+// its samples), kept in its box's fourth lane (ptsv_boxes.comp.glsl).
+uint node_children(uint node) {
+    return floatBitsToUint(texelFetch(box_texels, 2 * int(node)).w);
+}
+
 void mark_node(uint node) {
     marks[sample_count + node] = 1u;
 }

@@ -235,13 +235,13 @@ def test_spot_light_volumes_are_bounded_across_the_light(frames):
     ("{hierarchy: octree}", "ptsv.hierarchy: Input should be 'tiles' or 'clusters'"),
     ("{hierarchy: clusters, slices: 1}", "ptsv.slices: Input should be greater than or equal to 2"),
     ("{slices: 128}", "ptsv.slices: Input should be less than or equal to 64"),
-    ("{tile: 6}", "ptsv.tile: must be a power of two, got 6"),
-    ("{tile: 32}", "ptsv.tile: Input should be less than or equal to 16"),
+    ("{tile: 3}", "ptsv.tile: must be a power of two, got 3"),
+    ("{tile: 8}", "ptsv.tile: Input should be less than or equal to 4"),
     ("{tile: 1}", "ptsv.tile: Input should be greater than or equal to 2"),
     ("{quads: maybe}", "ptsv.quads: Input should be a valid boolean"),
 ])
 def test_bad_parameters_exit_2(tmp_path, capsys, setting, message):
-    """An unknown hierarchy, a tile not a power of two or out of 2..16, slices out of 2..64,
+    """An unknown hierarchy, a tile not a power of two or out of 2..4, slices out of 2..64,
     quads not a boolean: exit 2, one line naming the file and the key, nothing written."""
     assert_bad_setting_exits_2(tmp_path, capsys, "ptsv", setting, message)
 
@@ -272,11 +272,14 @@ def _read_storage(buffer: int, dtype, count: int) -> np.ndarray:
 def test_cluster_boxes_bound_their_samples(frames):
     """Clusters on pins, built on a box buffer filled with junk (1e6): every level-1 and level-2
     node's box (a tile x tile or tile^2 x tile^2 block of samples, one depth slice) is the bounds
-    of its samples in that slice, exactly, and empty (min > max) where the slice holds none; a sample whose
-    visible side faces away from the light is marked and left out. Broken version run
-    against it once: level 1 writing only the boxes of slices that hold a sample (the empty ones
-    left as they were): fails (junk boxes); V stays right (test_same_v_as_sv: a junk box only
-    adds tests); the turned-away samples marked but left in the boxes: fails."""
+    of its samples in that slice, exactly, and empty (min > max) where the slice holds none; its
+    bits of children not empty (lo.w) are exactly the children holding a sample of the slice; a
+    sample whose visible side faces away from the light is marked and left out. Broken versions
+    run against it once: level 1 writing only the boxes of slices that hold a sample (the empty
+    ones left as they were): fails (junk boxes); V stays right (test_same_v_as_sv: a junk box
+    only adds tests); the turned-away samples marked but left in the boxes: fails; level 1's
+    bits each sample's own, not added to its slice's (fails here, and test_same_v_as_sv on 28
+    of 30)."""
     frame = frames(SCENE_FILE, "pins")
     technique = PerTriangleShadowVolumes(PerTriangleShadowVolumes.Params())
     technique.prepare(frame)
@@ -292,6 +295,7 @@ def test_cluster_boxes_bound_their_samples(frames):
         slices = _read_storage(h.sample_slices, np.uint32, w * ht).reshape(ht, w)
         marked = _read_storage(h.marks, np.uint32, w * ht).reshape(ht, w)[::-1] != 0
         boxes = _read_storage(h.boxes, np.float32, h.nodes * 8).reshape(-1, 2, 4)[..., :3]
+        children = _read_storage(h.boxes, np.uint32, h.nodes * 8).reshape(-1, 8)[:, 3]
         # the samples as the GPU takes them: GL rows (bottom up), relative to the origin
         position = (frame.arrays.position[::-1] - origin).astype(np.float32)
         turned_away = frame.arrays.covered & ~_facing_light(frame)
@@ -304,8 +308,14 @@ def test_cluster_boxes_bound_their_samples(frames):
                 for x in range(lw):
                     area = (slice(y * block, (y + 1) * block), slice(x * block, (x + 1) * block))
                     for s in range(h.slices):
-                        points = position[area][covered[area] & (slices[area] == s)]
-                        lo, hi = boxes[h.node_first[level] + (s * lh + y) * lw + x]
+                        in_slice = covered[area] & (slices[area] == s)
+                        points = position[area][in_slice]
+                        node = h.node_first[level] + (s * lh + y) * lw + x
+                        lo, hi = boxes[node]
+                        step = block // h.tile
+                        held = in_slice.reshape(h.tile, step, h.tile, step).any(axis=(1, 3))
+                        assert children[node] == sum(1 << int(bit)
+                                                     for bit in np.flatnonzero(held))
                         if len(points) == 0:
                             assert (lo > hi).any()
                         else:
