@@ -59,8 +59,10 @@ class PerTriangleShadowVolumes(Technique):
     the screen culls the volume; one behind the camera starts at the top). Work moves between levels in
     queues of (volume, node) items filled by atomics (one per item's queued children) and
     dispatched indirectly; an invocation tests one item's node's children in a loop, whatever
-    the subgroup size. ``visibility`` pushes the marks down to the pixels: V = 0 where
-    a sample or any node above it was marked. Samples are tested where they are, so open parts,
+    the subgroup size, and only the children that hold a sample (each box carries their bits,
+    at level 1 its own samples': the rest of a tile's samples lie in other slices).
+    ``visibility`` pushes the marks down to the pixels: V = 0 where a sample or any node above
+    it was marked. Samples are tested where they are, so open parts,
     triangle soups and the camera inside a shadow need nothing special, and there is no near or
     far plane to clip against. A point exactly on its own triangle's plane (within float32
     rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it. A sample whose
