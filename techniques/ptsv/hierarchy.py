@@ -9,9 +9,9 @@ clusters (``slices`` > 1, Sintorn et al. 2014) each level holds that grid once p
 level's slices. Node numbers run level 1 first, slice-major within a level; the marks buffer
 holds one flag per sample, then one per node. A node's box (min, max) carries in its fourth
 lane the bits of its children that are not empty (at level 1, its samples), so that the
-traversal visits those only. The traversal queues (volume, node) items in two
-regions used in turn (level k in region k & 1), each of ``capacity`` items; the planes buffer
-holds the queued casters' volumes. A volume whose footprint on the screen at most 2 x 2 nodes of
+traversal visits those only. The traversal queues (volume, node) items in two regions used in
+turn (level k in region k & 1), each of ``capacity`` items; the planes buffer holds the queued
+casters' volumes. A volume whose footprint on the screen at most 2 x 2 nodes of
 a lower level cover starts there (ptsv_setup.comp.glsl): its (volume, slice) seeds, sorted by
 level (counted, then placed), are tested just before their level's traversal
 (ptsv_seed.comp.glsl). The queues, planes and seeds grow when a frame overflows them (counted

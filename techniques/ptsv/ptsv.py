@@ -62,9 +62,9 @@ class PerTriangleShadowVolumes(Technique):
     the subgroup size, and only the children that hold a sample (each box carries their bits,
     at level 1 its own samples': the rest of a tile's samples lie in other slices).
     ``visibility`` pushes the marks down to the pixels: V = 0 where a sample or any node above
-    it was marked. Samples are tested where they are, so open parts,
-    triangle soups and the camera inside a shadow need nothing special, and there is no near or
-    far plane to clip against. A point exactly on its own triangle's plane (within float32
+    it was marked. Samples are tested where they are, so open parts, triangle soups and the
+    camera inside a shadow need nothing special, and there is no near or far plane to clip
+    against. A point exactly on its own triangle's plane (within float32
     rounding, 2^-20 of the scene's largest coordinate) is not shadowed by it. A sample whose
     visible side (its normal turned toward the camera) faces away from the light receives no
     light whatever shadows it: ``hierarchy`` marks it shadowed (V = 0) and leaves it out of

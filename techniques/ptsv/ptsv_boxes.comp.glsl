@@ -86,7 +86,7 @@ void main() {
             node_box(index, child_lo, child_hi);
             lo = min(lo, child_lo);
             hi = max(hi, child_hi);
-            if (all(lessThanEqual(child_lo, child_hi))) children |= child_bit(x, y);
+            if (!box_empty(child_lo, child_hi)) children |= child_bit(x, y);
 #endif
         }
     }

@@ -1,8 +1,9 @@
 // One level of the traversal: each queued (volume, node) item of level `level` has its node's
 // TILE x TILE children tested against the volume by one invocation, in a loop over the children
-// that are not empty (the node's bits, node_children: llvmpipe runs the loop as often as the
-// most any of its 8 lanes needs, not TILE x TILE times; the volume and the item read once; llvmpipe runs a work group 8 invocations at a time and every branch of
-// the code for all of them, so one invocation per child repeated the item's work per child).
+// that are not empty (the node's bits, node_children: llvmpipe runs a loop as often as the
+// busiest of its 8 lanes needs, not TILE x TILE times). The volume and the item are read once:
+// llvmpipe runs a work group 8 invocations at a time and every branch of the code for all of
+// them, so one invocation per child repeated the item's work per child.
 // Below level 1 the children are samples (the G-buffer's positions at the mask's resolution):
 // one inside the volume is marked shadowed. Above it they are nodes: one outside is skipped,
 // one inside is marked shadowed as a whole, any other is queued for the next level down, the

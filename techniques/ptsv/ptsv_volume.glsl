@@ -146,6 +146,10 @@ void node_box(uint node, out vec3 lo, out vec3 hi) {
     hi = texelFetch(box_texels, 2 * int(node) + 1).xyz;
 }
 
+bool box_empty(vec3 lo, vec3 hi) {
+    return any(greaterThan(lo, hi));
+}
+
 // Which of a node's TILE x TILE children are not empty, a bit each (y * TILE + x; at level 1
 // its samples), kept in its box's fourth lane (ptsv_boxes.comp.glsl).
 uint node_children(uint node) {
@@ -162,7 +166,7 @@ int test_node(vec4 volume[VOLUME_ROWS], uint node) {
     if (texelFetch(mark_texels, int(sample_count + node)).x != 0u) return -2;
     vec3 lo, hi;
     node_box(node, lo, hi);
-    if (any(greaterThan(lo, hi))) return -2;
+    if (box_empty(lo, hi)) return -2;
     TALLY(COUNT_NODE_TESTS);
     int test = classify(volume, lo, hi);
     if (test > 0) {
