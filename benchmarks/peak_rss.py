@@ -39,7 +39,7 @@ def child(args) -> None:
     scene = load_scene(args.scene, SCENE_FILE).with_resolution(args.size, args.size)
     start = time.perf_counter()
     if args.one == "reference":
-        from harness.reference import compute_reference
+        from harness.truth.reference import compute_reference
 
         ref = compute_reference(scene, samples=args.samples)
         extra = {"trace_s": ref.seconds, "build_s": ref.build_seconds, "cached": ref.cached}

@@ -8,7 +8,7 @@ the scene, and reads the colour back; our frame is the G-buffer pass plus the te
 passes, each timed as the harness times it (PassMeter: glFinish brackets, read-back of V
 excluded). Frames are interleaved, one of each per round, so that load from other processes
 falls on all of them alike; the ratios are per round: their median with a 95% interval of the
-median (order statistics, harness.timing.median_interval), min and max. Beside the wall clock,
+median (order statistics, harness.machine.timing.median_interval), min and max. Beside the wall clock,
 the CPU time of this process per frame (llvmpipe's threads included; our read-back of V
 included), which other processes disturb less.
 """
@@ -30,7 +30,7 @@ class PyrenderFrame:
         import pyrender
         import trimesh
 
-        from harness.transforms import look_at
+        from harness.scene.transforms import look_at
 
         self.scene = pyrender.Scene(ambient_light=[0.1, 0.1, 0.1])
         # one mesh of all triangles: one draw call, as our G-buffer pass makes
@@ -60,7 +60,7 @@ class TechniqueFrame:
     """One technique on the harness's Frame: the G-buffer pass, then the technique's passes."""
 
     def __init__(self, frame, technique: str, params: dict):
-        from harness import registry
+        from harness.technique import registry
         from harness.gl.measure import PassMeter
 
         cls = registry.get(technique)
@@ -110,7 +110,7 @@ def main() -> None:
     from harness.gl.context import get_context
     from harness.scene import load_scene
     from harness.technique import Frame
-    from harness.timing import median_interval
+    from harness.machine.timing import median_interval
 
     context = get_context()
     scene = load_scene(args.scene).with_resolution(args.size, args.size)

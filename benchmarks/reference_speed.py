@@ -52,14 +52,14 @@ def timed_pair(one, other, first: int):
 def direct(scene, samples: int) -> None:
     import mitsuba as mi
 
-    from harness.reference import mitsuba_scene_dict
+    from harness.truth.reference import mitsuba_scene_dict
 
     mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples))
     np.asarray(mi.render(mscene, spp=samples))
 
 
 def reference(scene, samples: int) -> None:
-    from harness.reference import compute_reference
+    from harness.truth.reference import compute_reference
 
     compute_reference(scene, samples=samples, use_cache=False)
 
@@ -68,7 +68,7 @@ def traces(scene, samples: int):
     """(direct's rays, the reference's rays) on one loaded Mitsuba scene."""
     import mitsuba as mi
 
-    from harness.reference import mitsuba_scene_dict, trace_visibility
+    from harness.truth.reference import mitsuba_scene_dict, trace_visibility
 
     mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples))
     return (lambda: np.asarray(mi.render(mscene, spp=samples)),
@@ -83,7 +83,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args()
 
-    from harness.reference import choose_variant, mitsuba_module
+    from harness.truth.reference import choose_variant, mitsuba_module
     from harness.scene import load_scene
 
     variant = choose_variant()

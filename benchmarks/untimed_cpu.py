@@ -29,7 +29,7 @@ def main() -> None:
     p.add_argument("--warmup", type=int, default=2)
     args = p.parse_args()
 
-    from harness import registry
+    from harness.technique import registry
     from harness.gl import measure
     from harness.gl.context import get_context
     from harness.scene import load_scene

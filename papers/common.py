@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import analysis, metrics, results
+from harness import analysis, results
+from harness.truth import metrics
 
 # V strictly between these is penumbra: a filtered, soft edge pixel
 PENUMBRA = (0.02, 0.98)
@@ -25,7 +26,7 @@ PENUMBRA = (0.02, 0.98)
 # texels, 8 px), narrow against their lit and shadowed regions, where penumbra is acne or leaks
 EDGE_WIDTH_BAND = 8
 # edge width is the edge's only where the runs do not self-shadow: acne
-# (harness.metrics.acne_pct) beyond that band below this share of the pixels
+# (harness.truth.metrics.acne_pct) beyond that band below this share of the pixels
 ACNE_MAX_PCT = 0.1
 
 
@@ -112,7 +113,7 @@ def edge_width_px(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> int:
 
 
 def acne_beyond_edges_pct(runs: Runs, row, *, width: int = EDGE_WIDTH_BAND) -> float:
-    """``harness.metrics.acne_pct`` of a row with the band of :func:`edge_width_px`: a soft edge
+    """``harness.truth.metrics.acne_pct`` of a row with the band of :func:`edge_width_px`: a soft edge
     wider than the row's own 2-pixel band is penumbra there, not acne."""
     v, covered, ref, ref_covered = runs.arrays(row)
     return metrics.acne_pct(v, ref, mask=covered & ref_covered, width=width)

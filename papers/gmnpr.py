@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from harness import metrics
+from harness.truth import metrics
 from techniques.warps import warp_equations
 
 from .common import Claim, Runs, g, increasing

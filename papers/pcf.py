@@ -3,7 +3,7 @@ Figures 7-10 as one-parameter sweeps and Table 1's cost of shadows (experiment `
 
 from __future__ import annotations
 
-from harness import metrics
+from harness.truth import metrics
 
 from .common import (
     ACNE_MAX_PCT,
@@ -26,7 +26,7 @@ COST_FACTOR = 2.0
 
 
 def light_in_shadow_pct(runs: Runs, row) -> float:
-    """``harness.metrics.leak_pct`` up to the reference boundary (band width 0) counting V above
+    """``harness.truth.metrics.leak_pct`` up to the reference boundary (band width 0) counting V above
     one half: a boundary moved by a pixel or two, which the row's ``leak_pct`` (beyond its
     2-pixel band) leaves out, lights reference-shadowed pixels next to it."""
     v, covered, ref, ref_covered = runs.arrays(row)

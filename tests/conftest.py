@@ -78,7 +78,9 @@ def make_results():
 
     import numpy as np
 
-    from harness import metrics, registry, results
+    from harness.truth import metrics
+    from harness.technique import registry
+    from harness import results
 
     def write(folder, runs, scene="s", size=32):
         folder = Path(folder)

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import cli, config, registry, results
+from harness import cli, config, results
+from harness.technique import registry
 from harness.cli import main as shadowbench
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state

@@ -1,4 +1,4 @@
-"""Config's cache entries, below mesh_files (and used by harness.reference): an entry is one .npz
+"""Config's cache entries, below mesh_files (and used by harness.truth.reference): an entry is one .npz
 of named arrays with a blake2b checksum of their contents stored beside them, written whole or
 not at all, and read back verified or not at all, as Git and ccache treat their objects.
 

@@ -9,7 +9,7 @@ from typing import Literal, Union
 
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from ..timing import STATISTICS
+from ..machine.timing import STATISTICS
 from .limits import DEFAULT_MAX_RUNS, DEFAULT_TRIANGLE_BUDGET, MAX_RUNS
 from .field_types import SquareInt, Strict
 from .scene_schema import TriangleCount
@@ -112,7 +112,7 @@ class Experiment(Strict):
     triangles: list[TriangleCount] | None = None
     frames: int = Field(15, ge=1, le=1000)  # measured frames per run, after the warm-up
     warmup: int = Field(2, ge=0, le=1000)
-    # the 95% interval of each median time: order statistics or bootstrap (harness.timing)
+    # the 95% interval of each median time: order statistics or bootstrap (harness.machine.timing)
     statistics: Literal[STATISTICS] = "order"
     # what a frame's time holds (harness.run.measure): dynamic, everything that depends on the
     # light and the geometry, every frame; static, that done once and timed as setup_ms

@@ -127,7 +127,7 @@ def mesh_parts(mesh_path: Path, up: str = "z", data: bytes | None = None) -> Mes
 
 
 def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
-    from ..interrupt import raise_if_interrupted
+    from ..machine.interrupt import raise_if_interrupted
 
     fmt = mesh_format(mesh_path)
     declared_triangles(mesh_path, fmt)  # a lying header is named before trimesh misreads it

@@ -1,4 +1,4 @@
-"""Config's motion schema: the camera, light and object paths of a moving scene (harness/motion.py
+"""Config's motion schema: the camera, light and object paths of a moving scene (harness/scene/motion.py
 follows them)."""
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ class ObjectMotion(Strict):
     own centre (the centre of its bounds as written), then orbits by ``orbit`` degrees about
     ``orbit_axis`` through ``centre`` (the centre of the scene's bounds as written unless
     given), then moves by ``translate``; an axis not given is the camera's up. Frame t is at
-    t / (frames - 1) of each (harness/motion.py)."""
+    t / (frames - 1) of each (harness/scene/motion.py)."""
 
     object: Union[Annotated[int, Field(ge=0)], str]
     spin: Degrees = 0.0
@@ -48,7 +48,7 @@ class Motion(Strict):
     toward its target by the fraction ``camera_dolly`` of its distance (negative: away);
     ``objects`` move along their own paths (:class:`ObjectMotion`). Frame t is at
     t / (frames - 1) of each path, so the first frame is the scene as written and the last
-    ends the paths (harness/motion.py)."""
+    ends the paths (harness/scene/motion.py)."""
 
     frames: int = Field(ge=2, le=1000)
     camera_orbit: Degrees = 0.0

@@ -222,7 +222,7 @@ TriangleCount = Annotated[int, BeforeValidator(_triangle_count), Field(ge=1)]
 
 
 class Family(Strict):
-    """Procedural geometry of about ``triangles`` triangles (harness/families.py): at most that
+    """Procedural geometry of about ``triangles`` triangles (harness/scene/families.py): at most that
     many, and within 5% below. ``seed`` fixes its random layout."""
 
     kind: Literal["tessellation", "instancing", "architecture", "foliage"]

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from OpenGL import GL
 from OpenGL.GL.ARB import pipeline_statistics_query as psq
 
-from ..timing import contention, is_software_renderer, median_interval
+from ..machine.timing import contention, is_software_renderer, median_interval
 
 TIMERS = ("clock", "query")
 PIPELINE_STATISTICS_EXTENSION = "GL_ARB_pipeline_statistics_query"
@@ -41,7 +41,7 @@ COUNTERS = tuple(COUNTER_TARGETS)
 class PassStats:
     name: str
     ms: float  # median over measured frames
-    ms_ci_low: float  # a 95% interval of that median (harness.timing.median_interval)
+    ms_ci_low: float  # a 95% interval of that median (harness.machine.timing.median_interval)
     ms_ci_high: float
     fragments: int  # samples that passed, from the last frame
     # pipeline statistics of the last frame; None where the driver cannot count them
@@ -99,7 +99,7 @@ class PassMeter:
 
     ``counters``: also count pipeline statistics per pass (the driver must have them).
     :meth:`add_load` attributes to the current measured frame the CPU time other processes
-    used while it ran, and the time the machine had (see :mod:`harness.timing`)."""
+    used while it ran, and the time the machine had (see :mod:`harness.machine.timing`)."""
 
     def __init__(self, timer: str = "clock", counters: bool = False):
         if timer not in TIMERS:
@@ -166,7 +166,7 @@ class PassMeter:
 
     def passes(self, statistics: str = "order") -> list[PassStats]:
         """Each pass of the last frame: its median time with the interval that
-        ``statistics`` (harness.timing.STATISTICS) gives, its fragments and counters."""
+        ``statistics`` (harness.machine.timing.STATISTICS) gives, its fragments and counters."""
         if not self._frames:
             return []
         out = []

@@ -33,7 +33,8 @@ import os
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
-from .. import analysis, registry
+from .. import analysis
+from ..technique import registry
 from . import images, overview, plots
 from .scale import scale_view
 from .papers import build_papers_page, papers_link

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .. import metrics
+from ..truth import metrics
 from ..results import replace_atomically
 
 SHOWN_PX = 256  # the longer side of an image as the page shows it

@@ -6,8 +6,9 @@ renderer and what its times mean; failures and noisy runs counted; then the tabl
 
 from __future__ import annotations
 
-from .. import analysis, scaling
-from ..timing import is_software_renderer, too_noisy
+from .. import analysis
+from ..analysis import scaling
+from ..machine.timing import is_software_renderer, too_noisy
 from . import plots
 
 
@@ -35,7 +36,7 @@ def counts(shown, current) -> dict:
 
 
 def verdicts(current, shown, colours: dict[str, str]) -> list[dict]:
-    """Per size band the current runs fall in (:func:`harness.scaling.size_band`, smallest
+    """Per size band the current runs fall in (:func:`harness.analysis.scaling.size_band`, smallest
     first, unknown last): its scenes and its :func:`summaries`."""
     bands, shown_bands = scaling.size_band(current), scaling.size_band(shown)
     costs, errors = plots.cost_axes(current), plots.axes(current, plots.ERRORS)

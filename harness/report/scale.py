@@ -1,7 +1,7 @@
 """The Scale view, shown when the results hold family scenes (the scale experiment's, each size a
 scene of its own): per family, each technique's cost at equal error and at its defaults against
-triangles (log-log), the exponents of its cost (:func:`harness.scaling.scaling`), the
-cost-accuracy fronts per size, and the crossover table (:func:`harness.scaling.crossover`): each
+triangles (log-log), the exponents of its cost (:func:`harness.analysis.scaling.scaling`), the
+cost-accuracy fronts per size, and the crossover table (:func:`harness.analysis.scaling.crossover`): each
 technique against the baseline and against the rivals its class names. A family run at one size
 gets no exponent: the view says that a fit needs two sizes or more."""
 
@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 
-from .. import analysis, registry, scaling
+from .. import analysis
+from ..technique import registry
+from ..analysis import scaling
 from . import plots
 
 LEVEL = 1.5  # equal error: edge_mae within 1.5 x edge_floor, the level of the scenes' picks

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import registry
+from ..technique import registry
 from ..scene import BuiltScene, load_scene
 from .measure import run_one
 from .plan import RunSpec, validate_params
@@ -18,8 +18,8 @@ from .plan import RunSpec, validate_params
 class Evaluation:
     row: dict
     visibility: np.ndarray | None
-    reference: object  # harness.reference.Reference
-    frame_arrays: object  # harness.gbuffer.GBufferArrays
+    reference: object  # harness.truth.reference.Reference
+    frame_arrays: object  # harness.gl.gbuffer.GBufferArrays
     mask: np.ndarray  # the pixels every metric compares (Frame.compared_pixels)
     arrays: dict | None = None  # what the run stores (a moving scene's series among them)
 
@@ -37,7 +37,7 @@ def evaluate(scene: BuiltScene | str, technique: str, params: dict | None = None
     ``reference``, ``frame_arrays`` and ``mask`` are frame 0's.
     """
     from ..gl.context import get_context
-    from ..reference import compute_reference
+    from ..truth.reference import compute_reference
     from ..technique import Frame
 
     if isinstance(scene, str):

@@ -15,7 +15,7 @@ from .. import config as cfg
 from .. import results
 from ..gl import measure as pass_measure
 from ..gl.measure import default_timer
-from ..timing import CONFIDENCE, NOISY_CONTENTION
+from ..machine.timing import CONFIDENCE, NOISY_CONTENTION
 from .measure import BATCH_BYTES, BATCH_RESIDENT, BATCH_RUNS
 from .plan import Plan
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import registry
-from ..timing import cpu_sample, others_time
+from ..technique import registry
+from ..machine.timing import cpu_sample, others_time
 from .plan import RunSpec
 from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one_line, score_run,
                     sequence_score)
@@ -273,7 +273,7 @@ def _run_sequence(batches, frame, on_frame):
     through the sequence, one interleaved round per frame (each technique's frame as its cost
     policy has it, measured), and each run's frame is scored as it is rendered against that frame's
     reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run."""
-    from ..reference import compute_reference
+    from ..truth.reference import compute_reference
 
     for failed, batch in batches:
         for timed in failed:

@@ -13,7 +13,8 @@ import yaml
 from pydantic import ValidationError
 
 from .. import config as cfg
-from .. import metrics, registry
+from ..truth import metrics
+from ..technique import registry
 from ..scene import BuiltScene, build_scene
 
 
@@ -36,7 +37,7 @@ class RunSpec:
     ref_seed: int = 0
     scene_key: str = ""
     code_version: str = ""
-    statistics: str = "order"  # how the median's interval is computed (harness.timing)
+    statistics: str = "order"  # how the median's interval is computed (harness.machine.timing)
     cost: str = "dynamic"  # the cost policy (harness.run.measure)
 
     @property

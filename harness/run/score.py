@@ -10,9 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import cost_model, metrics, results
+from ..analysis import cost_model
+from ..truth import metrics
+from .. import results
 from ..gl.measure import COUNTERS
-from ..timing import NOISY_CONTENTION, median_interval
+from ..machine.timing import NOISY_CONTENTION, median_interval
 from .plan import RunSpec
 
 
@@ -101,7 +103,7 @@ class FrameTruth:
     compared pixels, V_ref in float64 and its edge band."""
 
     index: int  # the frame of the sequence (0 for a still scene)
-    reference: object  # harness.reference.Reference
+    reference: object  # harness.truth.reference.Reference
     mask: np.ndarray  # Frame.compared_pixels
 
     def __post_init__(self):
@@ -269,7 +271,7 @@ def _observe_world_flicker(sequence: SequenceState, v: np.ndarray, frame, truth:
                            previous: FrameTruth | None) -> None:
     """Frame ``truth.index``'s world flicker and changed % (NaN at frame 0) into the sequence's
     series, then this frame's depth and camera kept for the next. A moving object's pixels are
-    not left out (the frame does not say which moved): :func:`harness.metrics.world_points`'
+    not left out (the frame does not say which moved): :func:`harness.truth.metrics.world_points`'
     depth test drops those that left their place in depth."""
     a = frame.arrays
     world_flicker = changed = math.nan

@@ -1,5 +1,5 @@
 """Executing a plan, the loop around the steps: pending runs go to a renderer (serial here, or
-harness.distributed's on Dask) that measures, scores and stores them; progress and manifest."""
+harness.run.distributed's on Dask) that measures, scores and stores them; progress and manifest."""
 
 from __future__ import annotations
 
@@ -96,7 +96,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
 
     ``renderer(plan, pending, out_dir, context, bar)`` renders and records the pending runs,
     yielding ``(spec, row)`` as each is recorded: :func:`render_serial` (the default) in this
-    process, or ``harness.distributed.dask_renderer(...)`` on a Dask cluster.
+    process, or ``harness.run.distributed.dask_renderer(...)`` on a Dask cluster.
 
     Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
     at any moment leaves every finished run recorded once and no partial row; the next call
@@ -106,7 +106,7 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
     renders again the runs whose stored arrays are missing or damaged."""
     from tqdm import tqdm
 
-    from ..interrupt import raise_if_interrupted
+    from ..machine.interrupt import raise_if_interrupted
 
     renderer = renderer or render_serial
     out_dir = Path(out_dir)
@@ -171,7 +171,7 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
     shared, its runs measured in interleaved rounds: :func:`run_group`), appending each row
     as it finishes; yields (spec, row) for each. A scene whose reference or frame fails gives
     its runs error rows, and the sweep goes on."""
-    from ..reference import compute_reference
+    from ..truth.reference import compute_reference
     from ..technique import Frame
 
     groups: dict[tuple, list[RunSpec]] = {}

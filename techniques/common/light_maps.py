@@ -11,7 +11,7 @@ from OpenGL import GL
 from harness.config import MAX_COORDINATE
 from harness.gl.framebuffer import Framebuffer, Texture
 from harness.technique import Frame, Technique
-from harness.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_light
+from harness.scene.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_light
 
 # Upper bounds of the map techniques' length-like knobs, stated in each one's table: a constant
 # bias in scene units at most MAX_COORDINATE (no scene is larger: harness.config.limits);

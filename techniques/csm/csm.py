@@ -14,7 +14,7 @@ from pydantic import Field, create_model
 
 from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
-from harness.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
+from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
 from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, LightDepthMap,
                                           depth_precision)

@@ -11,7 +11,7 @@ from OpenGL import GL
 from pydantic import Field, field_validator
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
-from harness.transforms import box_corners
+from harness.scene.transforms import box_corners
 
 from .casters import quad_casters, triangle_casters
 from .hierarchy import SampleHierarchy, closed_sides

@@ -51,7 +51,7 @@ def per_ray(nodes: np.ndarray, tests: np.ndarray, occluded: np.ndarray) -> dict:
     if not len(nodes):
         return {"rays": 0}
     return {"rays": int(len(nodes)), "occluded_rays": int(occluded.sum()),
-            # a frame's totals: the cost model's traversal work (harness.cost_model)
+            # a frame's totals: the cost model's traversal work (harness.analysis.cost_model)
             "traversal_nodes": int(nodes.sum(dtype=np.int64)),
             "triangle_tests": int(tests.sum(dtype=np.int64)),
             "nodes_per_occluded_ray": (round(float(nodes[occluded].mean()), 3)

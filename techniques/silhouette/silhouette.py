@@ -13,7 +13,7 @@ from pydantic import Field
 from harness.gl.framebuffer import Framebuffer
 from harness.gl.shaders import Program
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
-from harness.transforms import LightFrustum, fit_light
+from harness.scene.transforms import LightFrustum, fit_light
 
 from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
 from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh

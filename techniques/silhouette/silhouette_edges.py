@@ -14,7 +14,7 @@ from OpenGL import GL
 
 from harness.gl.geometry import BufferTexture, VertexArray
 from harness.scene import BuiltScene, Light
-from harness.transforms import LightFrustum
+from harness.scene.transforms import LightFrustum
 
 # Half-width and end extension of an edge's quad, in texels. A texel the segment crosses has
 # its centre within sqrt(2)/2 of the segment, so a quad this wide covers that centre.

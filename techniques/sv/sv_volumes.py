@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import trimesh
 
-from harness.motion import moved
+from harness.scene.motion import moved
 from harness.scene import Light, MeshPart
 
 # Below this a triangle is taken as zero-area (twice its area over the squared extent of its

@@ -30,8 +30,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from harness.transforms import (LightFrustum, any_perpendicular_up, box_corners, fit_light,
-                               look_at)
+from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, fit_light, look_at
 
 from .warp_diagnostics import outside_unit_cube
 

@@ -1,7 +1,7 @@
 """The warps themselves: the map's orientation in the light plane, the fit of the warped body
 to the unit cube, the light-space warp (LiSPSM, GMNPR) and the post-perspective one (PSM).
 
-Every map is expressed as a :class:`harness.transforms.LightFrustum`: ``view`` is a rigid light
+Every map is expressed as a :class:`harness.scene.transforms.LightFrustum`: ``view`` is a rigid light
 basis whose -z is the light's travel direction (a spot light's own view), centred on the camera
 (on a spot light), a local origin so the float32 GL passes keep their precision far from the
 world origin, so map depth stays the linear distance along the light; ``proj`` carries the whole
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.transforms import LightFrustum, any_perpendicular_up, look_at
+from harness.scene.transforms import LightFrustum, any_perpendicular_up, look_at
 
 from .warp_body import (LightSpace, ViewSetup, homogeneous, light_space, project,
                         space_depth_range, space_theta)

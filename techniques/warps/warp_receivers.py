@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.gl.reduction import CoveredRange
-from harness.transforms import LightFrustum
+from harness.scene.transforms import LightFrustum
 
 from .warp_body import Receivers
 

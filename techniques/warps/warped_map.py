@@ -14,7 +14,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import Field
 
-from harness import metrics
+from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 

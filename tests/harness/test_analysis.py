@@ -8,7 +8,8 @@ import math
 import pandas as pd
 import pytest
 
-from harness import analysis, registry
+from harness import analysis
+from harness.technique import registry
 
 
 def run(technique: str, time_ms: float, edge_mae: float = math.nan, *, scene: str = "a",

@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import cli, reference, results
+from harness import cli, results
+from harness.truth import reference
 from harness.config import cache_entry, mesh_files
 
 # a 48x40 box over a plane; the box is an OBJ file (8 vertices, 12 faces, closed)

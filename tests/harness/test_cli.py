@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 from helpers import result_rows
 
-from harness import cli, registry
+from harness import cli
+from harness.technique import registry
 from harness.technique import Technique, TechniqueParams
 
 REQUIRED = ("scene technique params width height map_res time_ms time_ms_min time_ms_max frames "

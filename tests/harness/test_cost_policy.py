@@ -9,7 +9,7 @@ import pytest
 import yaml
 from helpers import moving
 
-from harness import registry
+from harness.technique import registry
 from harness.cli import main as shadowbench
 
 TECHNIQUES = sorted(registry.techniques())

@@ -120,7 +120,7 @@ def test_a_task_is_a_piece_of_one_scene_and_resolution():
 
     Catches: one task per run (nothing to interleave), or tasks mixing resolutions (a worker
     would switch frames inside its rounds)."""
-    from harness.distributed import TASK_RUNS, tasks_of
+    from harness.run.distributed import TASK_RUNS, tasks_of
     from harness.run import RunSpec
 
     specs = ([RunSpec("a", "sm", {"res": 16 * (i + 1)}, 64, 48, 15, 2, 16) for i in range(20)]

@@ -1,5 +1,5 @@
-"""Scene families (harness/families.py), their sweep by an experiment's ``triangles``, and the
-per-run counts (harness/topology.py)."""
+"""Scene families (harness/scene/families.py), their sweep by an experiment's ``triangles``, and the
+per-run counts (harness/scene/topology.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import pytest
 import yaml
 from helpers import ROOT
 
-from harness import cli, config, families, metrics
+from harness import cli, config
+from harness.scene import families
+from harness.truth import metrics
 from harness.scene import build_scene
 
 SIZES = {"tessellation": [100, 1000, 10_000, 100_000],
@@ -60,7 +62,7 @@ def test_tessellation_casts_the_same_shadow_at_every_size(gl_context):
     off the box's faces, a receiver that grows with its cells): then the sweep measures a
     different shadow, not only more triangles. References compared on the pixels every size
     covers."""
-    from harness.reference import compute_reference
+    from harness.truth.reference import compute_reference
 
     refs = []
     for triangles in (100, 1000, 10_000):
@@ -125,7 +127,7 @@ def test_every_run_row_has_the_counts(evaluate):
 def test_the_reference_records_its_build_time_apart(tmp_path, monkeypatch, gl_context):
     """Catches the Mitsuba build time not recorded, counted outside the total, or lost when
     the reference is read back from the cache."""
-    from harness import reference
+    from harness.truth import reference
 
     monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path))
     scene = build_scene("t", _scene({"kind": "tessellation", "triangles": 1000},

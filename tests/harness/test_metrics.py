@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from harness import metrics
+from harness.truth import metrics
 
 
 def test_mae_rmse_wrong_by_hand():
@@ -328,7 +328,7 @@ def test_psnr_of_identical_images_is_inf_without_a_warning():
     """Before: scikit-image's 'divide by zero encountered' RuntimeWarning."""
     import warnings
 
-    from harness import metrics
+    from harness.truth import metrics
 
     v = np.linspace(0, 1, 64, dtype=np.float32).reshape(8, 8)
     with warnings.catch_warnings():

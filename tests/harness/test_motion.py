@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import cli, config, metrics, motion, registry
+from harness import cli, config
+from harness.truth import metrics
+from harness.scene import motion
+from harness.technique import registry
 from harness.run import evaluate
 from harness.scene import build_scene
 from harness.technique import Frame, NotApplicable, reset_gl_state
@@ -337,7 +340,7 @@ def test_the_worst_frame_and_the_strip_around_it(shipped_scenes, gl_context):
     np.testing.assert_allclose(error[compared], np.abs(a["worst_visibility"]
                                                        - a["worst_reference"])[compared])
     assert np.nanmean(error) == pytest.approx(a["series_mae"][worst], rel=1e-5)
-    from harness.reference import compute_reference
+    from harness.truth.reference import compute_reference
 
     for k, t in enumerate(frames):
         reference = compute_reference(scene.at_frame(t))

@@ -9,8 +9,10 @@ import pytest
 import yaml
 from helpers import render_visibility
 
-from harness import cli, config, metrics, registry
-from harness.reference import compute_reference
+from harness import cli, config
+from harness.truth import metrics
+from harness.technique import registry
+from harness.truth.reference import compute_reference
 from harness.scene import build_scene
 from harness.technique import Frame, NotApplicable, reset_gl_state
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import reference as ref_mod
-from harness.reference import UntraceableSceneError, compute_reference
+from harness.truth import reference as ref_mod
+from harness.truth.reference import UntraceableSceneError, compute_reference
 from harness.scene import Light
 from harness.technique import Frame
 
@@ -188,7 +188,7 @@ def test_direct_image_only_when_the_scene_asks(scene_at):
 
 def test_direct_image_is_lambert_times_visibility(scene_at, gl_context):
     """Mitsuba's direct integrator and the GL-side shading agree where V_ref is 0 or 1."""
-    from harness import metrics
+    from harness.truth import metrics
 
     scene = scene_at("sphere_plane", 96)
     a = gbuffer_arrays(scene)

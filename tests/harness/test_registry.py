@@ -10,8 +10,8 @@ import pytest
 from pydantic import ValidationError
 
 import techniques as techniques_package
-from harness import registry
-from harness.code_version import code_files
+from harness.technique import registry
+from harness.technique.code_version import code_files
 from harness.technique import Frame, NotApplicable, Technique, reset_gl_state
 
 
@@ -174,7 +174,7 @@ def test_technique_declaration(name):
 
 def package_imports(path: Path) -> set[Path]:
     """The ``techniques/**.py`` modules ``path`` imports, resolved by file path alone (an
-    oracle independent of harness.code_version's importlib resolution): ``from . import x``,
+    oracle independent of harness.technique.code_version's importlib resolution): ``from . import x``,
     ``from .x import y``, ``from ..common.x import y``, ``from techniques.a.b import y``,
     ``import techniques.a.b``."""
     def module_file(parts: list[str]) -> Path | None:

@@ -5,20 +5,21 @@ import csv
 import json
 from pathlib import Path
 
-from harness import columns, results
+from harness.results import columns
+from harness import results
 from helpers import ROOT
 
 
 
 def test_the_page_is_the_schema():
-    """docs/results.md is what ``python -m harness.columns`` writes, and every column has its
+    """docs/results.md is what ``python -m harness.results.columns`` writes, and every column has its
     unit-or-dash, meaning and when-empty. Catches a column added to the schema without its
     line (a Column with no meaning), and a page edited by hand or not regenerated."""
     for c in columns.COLUMN_TABLE:
         assert c.meaning.strip() and c.empty.strip(), c.name
     assert set(results.COLUMNS) == {c.name for c in columns.COLUMN_TABLE}
     page = (ROOT / "docs" / "results.md").read_text()
-    assert page == columns.page(), "docs/results.md is stale: python -m harness.columns > " \
+    assert page == columns.page(), "docs/results.md is stale: python -m harness.results.columns > " \
                                    "docs/results.md"
     documented = [line.split("`")[1] for line in page.splitlines() if line.startswith("| `")]
     assert documented == list(results.COLUMNS)

@@ -1,4 +1,4 @@
-"""harness.scaling on synthetic tables: a known power law to recover, a crossing worked out by
+"""harness.analysis.scaling on synthetic tables: a known power law to recover, a crossing worked out by
 hand, size bands at their edges."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import scaling
+from harness.analysis import scaling
 
 
 def family_run(technique: str, triangles: float, time_ms: float, edge_mae: float = 0.1, *,

@@ -11,7 +11,7 @@ import annotated_types as at
 import pytest
 from pydantic_core import PydanticUndefined
 
-from harness import registry
+from harness.technique import registry
 from helpers import ROOT
 
 

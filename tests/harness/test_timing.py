@@ -11,7 +11,9 @@ import pytest
 from helpers import rows_by_run_id
 from scipy import stats
 
-from harness import cli, registry, timing
+from harness import cli
+from harness.technique import registry
+from harness.machine import timing
 from harness.run import score as runner
 from harness.technique import Technique, TechniqueParams
 

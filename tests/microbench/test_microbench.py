@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import registry
+from harness.technique import registry
 from helpers import one_frame_of
 
 FRAME_ROUNDS = 10
@@ -52,7 +52,7 @@ def test_technique_frame_512(benchmark, box_frame, name):
 
 
 def test_reference_256_16spp(benchmark, scene_at):
-    from harness.reference import compute_reference
+    from harness.truth.reference import compute_reference
 
     scene = scene_at("box_plane", 256)
     ref = benchmark.pedantic(lambda: compute_reference(scene, samples=16, use_cache=False),

@@ -37,7 +37,7 @@ def ring_scene(light=None):
 
 @pytest.mark.parametrize("name", FRAME_TECHNIQUES)
 def test_ring_frame(benchmark, gl_context, name):
-    from harness import registry
+    from harness.technique import registry
     from harness.technique import Frame, NotApplicable, reset_gl_state
 
     cls = registry.get(name)

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness import cli, registry, report, results
+from harness import cli, report, results
+from harness.technique import registry
 from papers import claims, common, gmnpr, mdsm, pcf, silhouette, sv
 from helpers import ROOT
 

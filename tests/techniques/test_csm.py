@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from harness import cli, registry
+from harness import cli
+from harness.technique import registry
 from harness.technique import Frame, reset_gl_state
-from harness.transforms import camera_matrices
+from harness.scene.transforms import camera_matrices
 from techniques.common.light_maps import MapShading
 from techniques.sm.sm import SHADING as SM_SHADING
 from techniques.csm.csm import CascadedShadowMap, cascade_of, slice_corners, split_depths
@@ -119,7 +120,7 @@ def moved(frame, offset):
 
 def turned(frame, degrees):
     """The frame's camera turned by ``degrees`` about its up axis through its position."""
-    from harness.motion import rotation
+    from harness.scene.motion import rotation
     camera = frame.scene.config.camera
     position = np.asarray(camera.position, np.float64)
     aim = rotation(camera.up, degrees) @ (np.asarray(camera.target) - position)

@@ -1,6 +1,6 @@
 """Fair bias (issue 12, items 1-3; issue 14, item 13): every map technique's depth bias follows
 its own sampling footprint (receiver-plane bias, techniques/common/shadow_map.glsl), PCF's region is
-the pixel's footprint, and acne and leaks are measured apart (harness.metrics)."""
+the pixel's footprint, and acne and leaks are measured apart (harness.truth.metrics)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness import metrics
+from harness.truth import metrics
 from helpers import ROOT
 
 SHIPPED = ("sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long", "slant_edge",
@@ -58,8 +58,8 @@ def fair_runs(gl_context, scene_at):
     """(scene, map, technique) -> (acne_pct, leak_pct) at the defaults, shipped 512 x 512 views;
     one frame and one reference per scene. About 40 s on 2 busy cores: the map passes and
     shader builds cost more than the pixels, so the shipped size costs no more than 256."""
-    from harness import registry
-    from harness.reference import compute_reference
+    from harness.technique import registry
+    from harness.truth.reference import compute_reference
     from harness.technique import Frame, reset_gl_state
 
     runs = {}
@@ -317,7 +317,7 @@ def lifted_mismatch(e, w, offset, low, high, light_position=None, direction=None
     """Floor pixels (outside the predicted shadow's edge band) where V disagrees with the slab
     test of the floor points lifted by offset x w x sin(theta) along +z, w per pixel; and how
     many of them the predicted shadow holds."""
-    from harness import metrics
+    from harness.truth import metrics
 
     position = e.frame_arrays.position.astype(np.float64)
     normal = e.frame_arrays.normal.astype(np.float64)
@@ -401,7 +401,7 @@ def test_normal_offset_scales_with_the_texel_world_size(scene_at, evaluate):
     the light. The measured shift of the shadow's centroid matches that within 10 % at maps
     256 and 512, so doubling res halves the world offset. Catches an offset in map texels
     rather than world units, the world size of the wrong axis, or a missing sine."""
-    from harness.transforms import fit_light
+    from harness.scene.transforms import fit_light
 
     scene = scene_at("box_plane", 256)
     d = np.asarray(scene.light.direction, float)

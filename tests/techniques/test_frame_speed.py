@@ -24,7 +24,7 @@ def clear_as_before(self, *colors, stencil: int = 0) -> None:
 
 
 def render_v(frame, technique: str, params: dict) -> np.ndarray:
-    from harness import registry
+    from harness.technique import registry
     from harness.technique import reset_gl_state
 
     cls = registry.get(technique)
@@ -68,7 +68,7 @@ def test_sm_and_pcf_give_the_v_they_gave_before(scene_name, scene_at, gl_context
     Catches: sm's shader dropping the constant bias or the slope term, or testing another
     texel (seen: receiver_test(r, r.texel, 0.0) differs here); covered-only shading that leaves
     out covered pixels (GL_LESS instead of GL_GREATER: V 1 everywhere)."""
-    from harness.gbuffer import GBuffer
+    from harness.gl.gbuffer import GBuffer
     from harness.gl.framebuffer import Framebuffer
     from harness.technique import Frame
 

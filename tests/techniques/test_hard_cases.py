@@ -10,7 +10,8 @@ at the near plane, where texels grow to scene units: resolution, not stability).
 import numpy as np
 import pytest
 
-from harness import cli, registry, results
+from harness import cli, results
+from harness.technique import registry
 from helpers import ROOT
 
 EXPERIMENT = ROOT / "experiments" / "hard_cases.yaml"

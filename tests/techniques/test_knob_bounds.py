@@ -10,7 +10,8 @@ import re
 
 import pytest
 
-from harness import config, registry
+from harness import config
+from harness.technique import registry
 from harness.run import validate_params
 
 from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS

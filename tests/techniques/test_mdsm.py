@@ -12,7 +12,8 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 from pydantic import ValidationError
 
-from harness import config, metrics
+from harness import config
+from harness.truth import metrics
 from harness.run import validate_params
 from harness.technique import Frame, reset_gl_state
 from techniques.common.light_maps import EMPTY_DEPTH

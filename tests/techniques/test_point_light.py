@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 import yaml
 
-from harness import cli, config, metrics, registry, results
-from harness.reference import compute_reference
+from harness import cli, config, results
+from harness.truth import metrics
+from harness.technique import registry
+from harness.truth.reference import compute_reference
 from harness.scene import build_scene
 from harness.technique import Frame
 from techniques.common.light_maps import CUBE_GUARD_TEXELS

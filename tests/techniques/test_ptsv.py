@@ -33,7 +33,8 @@ import pytest
 from helpers import ROOT, SCENE_FILE, assert_bad_setting_exits_2, render_once
 from OpenGL import GL
 
-from harness import config, metrics
+from harness import config
+from harness.truth import metrics
 from harness.scene import load_scene
 from harness.technique import Frame, reset_gl_state
 from techniques.ptsv import PerTriangleShadowVolumes

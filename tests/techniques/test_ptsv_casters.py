@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from helpers import SCENE_FILE, render_once
 
-from harness.families import _quad
+from harness.scene.families import _quad
 from techniques.ptsv import PerTriangleShadowVolumes
 from techniques.ptsv.casters import NO_CORNER, quad_casters, triangle_casters
 

@@ -8,7 +8,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from harness import config, registry
+from harness import config
+from harness.technique import registry
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
 from techniques.rt import levels
@@ -131,7 +132,7 @@ def test_the_embree_backend_moves_instances_and_builds_once(gl_context, monkeypa
     copy is shifted back by (40, 20, 0). Catches poses never applied (frame 2 shows frame 0's
     shadow), a pose applied without Mitsuba's shift, and the scene loaded again per moved
     frame (the backend's first version: 3 loads). All three seen failing."""
-    from harness import reference
+    from harness.truth import reference
 
     params = registry.get("rt").Params(backend="embree")
     moving = build_scene("moving", config.Scene(**away_from_the_origin(MOVING, [40, 20, 0])))
@@ -158,7 +159,7 @@ def test_moved_boxes_hold_every_moved_corner_and_no_more():
     corners moved in float64 lies inside, and each face lies within 4 float32 ulps of the
     corners' bounds. Catches half extents rotated by R instead of |R| (corners outside), and
     the float64 bounds cast without widening (a corner outside by rounding)."""
-    from harness.motion import rotation
+    from harness.scene.motion import rotation
 
     rng = np.random.default_rng(3)
     lo = rng.uniform(-50, 50, (200, 3)).astype(np.float32)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import config, registry
+from harness import config
+from harness.technique import registry
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
 

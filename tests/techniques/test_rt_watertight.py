@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from OpenGL import GL
 
-from harness import config, registry
+from harness import config
+from harness.technique import registry
 from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
 

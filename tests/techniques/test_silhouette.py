@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import metrics
+from harness.truth import metrics
 from helpers import rendered
 
 SCENE_PX = 256
@@ -204,7 +204,7 @@ def test_hidden_silhouettes_not_stored(scene_at, gl_context):
 # wrong pixel within 1.5 texels (in the map) of a silhouette edge.
 
 def test_hard_cases_bounded(scene_at, evaluate):
-    from harness.transforms import fit_light
+    from harness.scene.transforms import fit_light
 
     scene = scene_at("silhouette_hard", SCENE_PX)
     res = 128

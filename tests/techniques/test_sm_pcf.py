@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from harness import metrics
+from harness.truth import metrics
 
 RESOLUTIONS = (256, 512, 1024, 2048)
 
@@ -99,7 +99,7 @@ def test_pcf_jitter_puts_one_uniform_sample_in_each_stratum(scene_at, evaluate):
     centres (the grid) predict another V at most edge pixels (measured: 40 % equal). Catches
     jitter made identical to the grid, a place outside its stratum, or an axis or sample
     index mixed up in the hash."""
-    from harness.transforms import fit_light
+    from harness.scene.transforms import fit_light
 
     res, spacing, n, seed = 256, 2.0, 4, 3
     scene = scene_at("box_plane", 128)

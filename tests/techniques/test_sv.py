@@ -11,10 +11,11 @@ import yaml
 from helpers import DATA, SCENE_FILE, real_corpus
 from scipy import ndimage
 
-from harness import config, metrics
+from harness import config
+from harness.truth import metrics
 from harness.scene import MeshPart, build_scene, load_scene
 from harness.technique import Frame
-from harness.transforms import camera_matrices
+from harness.scene.transforms import camera_matrices
 from techniques.sv import sv_volumes
 
 RES = 192

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from harness import metrics
-from harness.transforms import look_at
+from harness.truth import metrics
+from harness.scene.transforms import look_at
 from techniques.warps import warped_map as W
 
 N, F, PHI = 1.0, 100.0, math.pi / 6

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from helpers import light_at, variant
 
-from harness import registry
+from harness.technique import registry
 from harness.technique import Frame, reset_gl_state
 from techniques.warps import warped_map as W
 

@@ -9,10 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from harness import config, metrics
+from harness import config
+from harness.truth import metrics
 from harness.scene import build_scene
 from harness.technique import Frame
-from harness.transforms import camera_matrices, fit_light
+from harness.scene.transforms import camera_matrices, fit_light
 from techniques.warps import warped_map as W
 from helpers import ROOT, light_at, variant, view_direction
 

@@ -7,7 +7,7 @@ from pydantic import Field
 
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
-from harness.transforms import fit_light
+from harness.scene.transforms import fit_light
 
 
 class HardwarePCF(Technique):

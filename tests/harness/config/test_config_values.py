@@ -24,7 +24,8 @@ from helpers import (
     write_scenes,
 )
 
-from harness import config, registry
+from harness import config
+from harness.technique import registry
 from harness import run as runner
 
 NAN, INF = float("nan"), float("inf")
@@ -96,7 +97,7 @@ def test_the_depth_ratio_limit_keeps_every_pixel_the_reference_covers(gl_context
     far/2 (the worst case the limit's rule covers), GL's 24-bit depth covers exactly what
     Mitsuba's rays hit. Catches: MAX_DEPTH_RATIO raised to 2^25 (GL then loses pixels: at
     far/2 a point is only half a depth step in front of the cleared depth)."""
-    from harness.reference import compute_reference
+    from harness.truth.reference import compute_reference
     from harness.scene import build_scene
     from harness.technique import Frame
 

@@ -118,7 +118,7 @@ def test_bad_quality_knob_declaration_exits_2_naming_technique_and_key(
     still run: tests/harness/test_plugin_safety.py). Catches: a declaration checked only when a
     curve runs (this run asks for no curve), a knob checked against nothing, a traceback
     instead of exit 2."""
-    from harness import registry
+    from harness.technique import registry
 
     cls = registry.get(technique)
     monkeypatch.setattr(cls, "quality_knobs", knobs)
@@ -144,7 +144,7 @@ def test_curves_walk_one_knob_at_a_time_from_the_defaults(tmp_path):
     cross there); ``curve: {knob: [...]}`` picks knobs and values, ``set`` moves the base.
     Catches: a product of the knobs (pcf would run 25 settings), a knob left out, the base
     ignored, the shared point run twice."""
-    from harness import registry
+    from harness.technique import registry
 
     def plan(text):
         return runner.plan_runs(experiment_path=str(_write(tmp_path, text)),

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness import cli, cost_model
+from harness import cli
+from harness.analysis import cost_model
 from harness.gl import measure
 
 TRIVIAL_FRAGMENT = "out vec4 colour;\nvoid main() { colour = vec4(1.0); }\n"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import registry
+from harness.technique import registry
 from harness.technique import Frame, reset_gl_state
 from helpers import DATA
 

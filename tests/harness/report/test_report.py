@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import registry, results
+from harness.technique import registry
+from harness import results
 from harness.cli import main as shadowbench
 from harness.report import build_report, images, scale, stability
 from helpers import ROOT, SCALE_SIZES, SCALE_TIMES, hostile_folder, make_run_dir, scale_folder

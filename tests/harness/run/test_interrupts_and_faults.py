@@ -26,7 +26,8 @@ from helpers import (
     write_scenes,
 )
 
-from harness import cli, interrupt, results
+from harness import cli, results
+from harness.machine import interrupt
 from harness import run as runner
 
 
@@ -34,7 +35,7 @@ def test_a_scene_that_fails_mid_sweep_gives_error_rows_and_the_sweep_goes_on(
         tmp_path, monkeypatch, capsys, gl_context):
     """Catches: render_serial letting a scene's reference failure end the sweep. Before: the
     RuntimeError ended everything (no rows for the other scene; a traceback)."""
-    from harness import reference
+    from harness.truth import reference
 
     traced = reference.compute_reference
 
@@ -83,7 +84,7 @@ def test_an_unreachable_scheduler_fails_within_seconds(tmp_path, capsys):
     started = time.monotonic()
     code, err = run_cli(sweep(write_scenes(tmp_path, {"s": GOOD}), tmp_path / "out",
                               "--executor", "dask", "--scheduler", address), capsys)
-    from harness.distributed import SCHEDULER_TIMEOUT_S
+    from harness.run.distributed import SCHEDULER_TIMEOUT_S
 
     assert time.monotonic() - started < SCHEDULER_TIMEOUT_S + 10
     assert_one_line(code, err, 2, f"--scheduler {address}")
@@ -267,7 +268,7 @@ def test_ctrl_c_stops_a_library_that_never_lets_go(tmp_path):
     """A 'library' that catches BaseException for ever (in the reference's place): the
     watcher ends the process GRACE_S after the signal. Catches: a stop that relies on the
     main thread reaching a safe point."""
-    patch = ("import harness.reference as r\n"
+    patch = ("import harness.truth.reference as r\n"
              "def stubborn(*a, **k):\n"
              "    start.set()\n"
              "    while True:\n"
@@ -352,7 +353,7 @@ def test_library_warnings_go_to_the_log_and_a_runs_own_into_its_row(tmp_path, gl
 
     from helpers import result_rows, small_run
 
-    from harness import metrics
+    from harness.truth import metrics
     from harness.run import plan as planning
 
     build = planning.build_scene

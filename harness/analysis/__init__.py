@@ -36,7 +36,7 @@ def current(df: pd.DataFrame) -> pd.DataFrame:
     an older version, or of a technique not installed here, is left out), and of several rows of
     one scene, size, technique and parameters (a rerun with other frames, or after a metrics
     change) the last one written."""
-    from . import registry
+    from ..technique import registry
 
     version = {name: cls.code_version() for name, cls in registry.techniques().items()}
     rows = df[(df["status"] == "ok") & (df["code_version"] == df["technique"].map(version))]
@@ -186,7 +186,7 @@ def summary(df: pd.DataFrame, *, cost: str = "time_ms", error: str = "edge_mae",
     reaches; ``worst_ratio`` is the largest, at ``worst_scene``, ``worst_size`` ("WxH") and
     ``worst_error`` (L). The reference's own ratio is 1; without reference runs the ratio
     columns are empty. ``reference`` defaults to the registered baseline technique."""
-    from . import registry
+    from ..technique import registry
 
     reference = reference or registry.baseline(among=set(df["technique"]))
     rows = _rows(df, _finite(df, cost, error), cost, error)

@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import config as cfg
+from .. import config as cfg
 
 TOLERANCE = 0.05
 GROUND = 20.0  # side of the ground square every family stands on

@@ -17,7 +17,7 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
-from .gl.shaders import HARNESS_GLSL
+from ..gl.shaders import HARNESS_GLSL
 
 GROUP = "shadowbench.techniques"  # the entry-point group techniques register in
 _GLSL_NAME = re.compile(r"[\w./]+\.glsl")

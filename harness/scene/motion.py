@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import config as cfg
+from .. import config as cfg
 
 
 def progress(frames: int, t: int) -> float:

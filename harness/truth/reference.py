@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import cache_root, square_number
-from .config.cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
-from .scene import BuiltScene
+from ..config import cache_root, square_number
+from ..config.cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
+from ..scene import BuiltScene
 
 CACHE_VERSION = 6  # bump when the reference's definition changes; 6: checksums
 LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
@@ -178,7 +178,7 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
 
 
 def _up_for(direction: np.ndarray) -> np.ndarray:
-    from .transforms import any_perpendicular_up
+    from ..scene.transforms import any_perpendicular_up
 
     return any_perpendicular_up(direction)
 

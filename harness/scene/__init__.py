@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from . import config as cfg
+from .. import config as cfg
 from . import families
 from . import motion as motion_paths
 from . import topology
-from .interrupt import raise_if_interrupted
+from ..machine.interrupt import raise_if_interrupted
 
 
 @dataclass(frozen=True)
@@ -132,7 +132,7 @@ class BuiltScene:
     @property
     def counts(self) -> dict[str, int]:
         """The per-run counts: triangles, parts, open parts, and the shadow edges seen from
-        this scene's light (harness.topology)."""
+        this scene's light (harness.scene.topology)."""
         return {"triangles": len(self.triangles), "parts": self.edges.parts,
                 "open_parts": self.edges.open_parts,
                 "shadow_edges": topology.shadow_edges(self.edges, self.triangles, self.light)}
@@ -169,7 +169,7 @@ class BuiltScene:
 
     def at_frame(self, t: int) -> "BuiltScene":
         """Frame ``t`` of a moving scene: a still scene with that frame's camera and light and
-        its objects where their paths put them (harness/motion.py). Its key is that still
+        its objects where their paths put them (harness/scene/motion.py). Its key is that still
         scene's (with the parts' poses where objects moved), so each frame has its own
         reference cache entry and frame 0 shares the scene's without motion. A still scene's
         only frame is itself."""

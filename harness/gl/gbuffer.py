@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from OpenGL import GL
 
-from .gl.framebuffer import Framebuffer
-from .gl.shaders import HARNESS_GLSL, Program
+from .framebuffer import Framebuffer
+from .shaders import HARNESS_GLSL, Program
 
 
 @dataclass

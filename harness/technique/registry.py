@@ -19,8 +19,8 @@ from functools import lru_cache
 from importlib.metadata import entry_points
 
 from .code_version import GROUP
-from .config import ConfigError
-from .technique import Technique, check_declined_lights, check_quality_knobs, declares_baseline
+from ..config import ConfigError
+from . import Technique, check_declined_lights, check_quality_knobs, declares_baseline
 
 OWN_DISTRIBUTION = "shadowbench"  # the built-ins' (pyproject.toml); any other is a plugin
 

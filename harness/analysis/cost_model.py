@@ -43,7 +43,7 @@ in fixed function), so for traversals the bound is the loosest. Pass overhead is
 (0).
 
 ``LLVMPIPE``: fitted here by non-negative least squares (:func:`fit`) to llvmpipe's measured
-``time_ms``, so the model's fit is checkable: ``python -m harness.cost_model DIR`` prints R^2
+``time_ms``, so the model's fit is checkable: ``python -m harness.analysis.cost_model DIR`` prints R^2
 and the worst relative error of these coefficients over DIR's runs, and of a fit to DIR itself.
 Note that llvmpipe counts fragment invocations per 4x4 block (harness.gl.measure), so the
 per-fragment coefficients of the two sets apply to slightly different counts.
@@ -109,7 +109,7 @@ RTX_4090 = Coefficients(
 # pixel, and a traversal's invocations do very different work. That term now fits to 0 (the
 # reductions' cost is carried by the per-pass term), and the two traversal terms to 14.8 and
 # 12.7 ns a node or triangle test, close to the about 20 ns per node-volume test measured for
-# ptsv's traversal alone. Refit with ``python -m harness.cost_model DIR`` (both fits printed).
+# ptsv's traversal alone. Refit with ``python -m harness.analysis.cost_model DIR`` (both fits printed).
 LLVMPIPE = Coefficients(
     name="llvmpipe (Mesa 22.3.6, LLVM 15.0.6, 256 bits), 2 cores",
     source="fit() over make bench and make scale, 1189 runs, quiet, cost: dynamic",
@@ -227,9 +227,9 @@ def _design(rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .results import read_rows
+    from ..results import read_rows
 
-    p = argparse.ArgumentParser(prog="python -m harness.cost_model",
+    p = argparse.ArgumentParser(prog="python -m harness.analysis.cost_model",
                                 description="fit of the llvmpipe cost model over a results folder")
     p.add_argument("dir", help="a run directory (its results.csv)")
     p.add_argument("--terms", help="fit only these terms (per_node_ms,per_test_ms), the "
@@ -238,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = read_rows(args.dir)
     usable = [r for r in rows if _usable(r)]
     if len(usable) < len(FEATURES):
-        print(f"python -m harness.cost_model: {args.dir}: {len(usable)} ok runs with work "
+        print(f"python -m harness.analysis.cost_model: {args.dir}: {len(usable)} ok runs with work "
               f"counters, need at least {len(FEATURES)}", file=sys.stderr)
         return 2
     noisy = sum(r.get("noisy") == "1" for r in usable)
@@ -248,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
                            name=f"{args.terms} fitted to {args.dir}") if args.terms
                  else fit(usable, name=f"fitted to {args.dir}"))
     except ValueError as e:
-        print(f"python -m harness.cost_model: {args.dir}: {e}", file=sys.stderr)
+        print(f"python -m harness.analysis.cost_model: {args.dir}: {e}", file=sys.stderr)
         return 2
     for coefficients in (LLVMPIPE, refit):
         quality = fit_quality(usable, coefficients)

@@ -12,7 +12,8 @@ from collections import Counter
 from datetime import datetime
 from pathlib import Path
 
-from . import config, registry
+from .. import config
+from ..technique import registry
 
 
 def _show(value) -> str:
@@ -110,7 +111,7 @@ def inspect_lines(path: Path, name: str) -> list[str]:
     bounds, up axis, triangles and parts; then the scene's bounds."""
     import numpy as np
 
-    from .scene import build_parts
+    from ..scene import build_parts
 
     scenes = config.load_scenes(path, triangle_budget=None)
     if name not in scenes:
@@ -150,7 +151,7 @@ def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
     """The runs of ``plan`` grouped by scene (runs of each technique), the plan's notes, and the
     time the runs not yet in ``out`` would take, from the runs stored in ``stored`` (see
     :func:`estimate`)."""
-    from .results import read_rows
+    from ..results import read_rows
 
     done = {r["run_id"] for r in (read_rows(out) if out is not None else [])
             if r["status"] in ("ok", "skipped")}
@@ -214,7 +215,7 @@ def estimate(todo, rows: list[dict], wall: float | None) -> tuple[float, int]:
 
 def _wall_seconds(folder: Path) -> float | None:
     """The summed durations of the invocations recorded in ``folder``'s manifest."""
-    from .run import read_manifest
+    from ..run import read_manifest
 
     total = 0.0
     for session in read_manifest(folder).get("invocations", []):

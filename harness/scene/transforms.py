@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import pyrender
 
-from . import config as cfg
-from .scene import BuiltScene
+from .. import config as cfg
+from . import BuiltScene
 
 
 def look_at(eye, target, up) -> np.ndarray:

@@ -35,17 +35,17 @@ import numpy as np
 from OpenGL import GL
 from pydantic import ConfigDict
 
-from . import metrics
+from ..truth import metrics
 from .code_version import code_hash
-from .config import LIGHT_TYPES, TypesAsWritten
-from .gbuffer import GBuffer
-from .gl.framebuffer import Framebuffer
-from .gl.geometry import FullscreenTriangle, SceneMesh
-from .gl import measure as pass_measure
-from .gl.measure import PassMeter, default_timer
-from .gl.shaders import HARNESS_GLSL, Program
-from .scene import BuiltScene
-from .transforms import camera_matrices
+from ..config import LIGHT_TYPES, TypesAsWritten
+from ..gl.gbuffer import GBuffer
+from ..gl.framebuffer import Framebuffer
+from ..gl.geometry import FullscreenTriangle, SceneMesh
+from ..gl import measure as pass_measure
+from ..gl.measure import PassMeter, default_timer
+from ..gl.shaders import HARNESS_GLSL, Program
+from ..scene import BuiltScene
+from ..scene.transforms import camera_matrices
 
 
 class NotApplicable(Exception):
@@ -140,7 +140,7 @@ class Technique:
     def code_version(cls) -> str:
         """Hash of the technique's code: its module, the modules of technique packages it
         imports, and the .glsl files any of them names, following ``#include``
-        (:mod:`harness.code_version`): a changed shared helper or shader changes the version,
+        (:mod:`harness.technique.code_version`): a changed shared helper or shader changes the version,
         so stored results are not reused."""
         return code_hash(cls.__module__)
 
@@ -289,7 +289,7 @@ class Frame:
 
     def compared_pixels(self, reference_covered: np.ndarray) -> np.ndarray:
         """The pixels metrics compare: covered in both views and reached by the light (see
-        :func:`harness.metrics.receives_light`)."""
+        :func:`harness.truth.metrics.receives_light`)."""
         a = self.arrays
         return reference_covered & a.covered & metrics.receives_light(
             a.normal, a.position, self.scene.light, self.camera.position)

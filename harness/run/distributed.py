@@ -19,10 +19,10 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from .config import ConfigError
-from .interrupt import deferred
-from .run import Plan, RunSpec, record_run
-from .run.measure import return_freed_memory
+from ..config import ConfigError
+from ..machine.interrupt import deferred
+from . import Plan, RunSpec, record_run
+from .measure import return_freed_memory
 
 # Runs per task: interleaving needs several runs in one worker, spreading the sweep needs
 # several tasks per worker.
@@ -33,7 +33,7 @@ _worker_frames: dict = {}
 
 def _frame_on_worker(scene, frames: int, warmup: int):
     """This worker's frame for the scene (one kept at a time) and its no-shadow cost."""
-    from .technique import Frame
+    from ..technique import Frame
 
     key = (scene.key, scene.width, scene.height)
     if key not in _worker_frames:
@@ -57,9 +57,9 @@ def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
     scene whose reference or frame fails gives its runs error rows, as in the serial runner."""
     from distributed import get_worker
 
-    from .gl.context import get_context
-    from .reference import compute_reference
-    from .run import failed_scene_row, run_group
+    from ..gl.context import get_context
+    from ..truth.reference import compute_reference
+    from . import failed_scene_row, run_group
 
     first = specs[0]
     context = get_context(platform)

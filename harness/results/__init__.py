@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from .columns import COLUMNS, JSON_COLUMNS, RENAMED
-from .config import ConfigError
+from ..config import ConfigError
 
 SCHEMA_VERSION = 1
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from . import analysis
+from .. import analysis
 
 # The families' sizes land within 5 % of their target, so each edge is widened by 5 % on the
 # side that keeps a scene made at exactly 10^4 or 10^5 triangles in the middle band.

@@ -18,9 +18,9 @@ import time
 import warnings
 from pathlib import Path
 
-from . import interrupt
-from .config import ConfigError
-from .timing import NOISY_CONTENTION, STATISTICS, too_noisy
+from ..machine import interrupt
+from ..config import ConfigError
+from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
 # the scenes shipped with shadowbench: beside the harness package in a checkout or an editable
@@ -88,7 +88,8 @@ def cmd_list(args) -> int:
     """Every technique with its parameters, broken entry points and stale editable installs;
     then the scenes and the file they came from; ``--scene NAME``: that scene's objects as
     placed. Two declared baselines are bad input (exit 2), after the listing."""
-    from . import listing, registry
+    from . import listing
+    from ..technique import registry
 
     if args.scene:
         print("\n".join(listing.inspect_lines(Path(_scene_file_or_error(args.scene_file)),
@@ -103,7 +104,7 @@ def cmd_list(args) -> int:
 
 
 def _plan(args):
-    from . import run
+    from .. import run
 
     return run.plan_runs(
         experiment_path=args.experiment, scene_file=_scene_file_or_error(args.scene_file),
@@ -126,7 +127,7 @@ def cmd_plan(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from . import results, run
+    from .. import results, run
 
     if args.scheduler and args.executor != "dask":
         raise ConfigError("--scheduler goes with --executor dask")
@@ -139,7 +140,7 @@ def cmd_run(args) -> int:
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
     if args.executor == "dask":
-        from .distributed import dask_renderer
+        from ..run.distributed import dask_renderer
 
         # the cluster is up (or the scheduler answered) before anything is written to --out
         with dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
@@ -171,7 +172,7 @@ def cmd_run(args) -> int:
             print(f"  failed: {r['scene']} {r['technique']} {r['params']}: {r['error']}",
                   file=sys.stderr)
     if args.report:
-        from .report import build_report
+        from ..report import build_report
 
         print(f"report: {build_report(args.out).resolve()}", file=sys.stderr)
     else:
@@ -183,12 +184,12 @@ def cmd_reference(args) -> int:
     import numpy as np
     from pydantic import ValidationError
 
-    from .config import ReferenceSettings, check_resolution
-    from .reference import compute_reference
-    from .report import visibility_png
-    from .results import inside, save_arrays
-    from .run.store import exclusive, reference_array_path
-    from .scene import load_scene
+    from ..config import ReferenceSettings, check_resolution
+    from ..truth.reference import compute_reference
+    from ..report import visibility_png
+    from ..results import inside, save_arrays
+    from ..run.store import exclusive, reference_array_path
+    from ..scene import load_scene
 
     # the bounds of an experiment's reference samples and of a scene's resolution
     try:
@@ -222,14 +223,14 @@ def cmd_reference(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .report import build_report
+    from ..report import build_report
 
     print(build_report(args.dir).resolve())
     return 0
 
 
 def cmd_compare(args) -> int:
-    from .report import compare
+    from ..report import compare
 
     result = compare.compare(args.before, args.after, factor=args.factor,
                              tolerance=args.tolerance)
@@ -415,8 +416,8 @@ def _log_warnings(args, lines: list[str]) -> None:
 
 def _known_failure(e: Exception) -> tuple[int, str] | None:
     """(exit code, one-line message) for an expected failure; None for a bug."""
-    from .gl.context import BackendError
-    from .reference import UntraceableSceneError
+    from ..gl.context import BackendError
+    from ..truth.reference import UntraceableSceneError
 
     if isinstance(e, (ConfigError, BackendError)):  # a RegistryError is a ConfigError
         return 2, str(e)
@@ -435,6 +436,3 @@ def _printable(message: str) -> str:
     """One line: newlines and other control characters (from names in files) escaped."""
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

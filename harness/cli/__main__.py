@@ -1,0 +1,7 @@
+"""``python -m harness.cli``: the ``shadowbench`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,9 @@
+"""The process and the machine while the harness measures: the lowest room, imported by all.
+
+- ``timing``: frame-time medians with their intervals, and how much of the CPU other
+  processes took while a run was timed (``cpu_contention``, ``noisy``).
+- ``interrupt``: Ctrl-C and SIGTERM stop a command within a second, whatever library is running;
+  long loops anywhere (mesh loading, the sweep) call ``raise_if_interrupted``.
+
+Nothing here imports another part of the harness.
+"""
