@@ -9,6 +9,10 @@ import pytest
 from helpers import ROOT, SCENE_FILE
 
 os.environ.setdefault("SHADOWBENCH_CACHE", str(ROOT / ".cache" / "shadowbench"))
+# The commands tests start (python -m harness.cli, from any folder) run this checkout's code,
+# not whichever checkout the environment's editable install points at (a git worktree's tests
+# would otherwise exercise another tree).
+os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
 
 
 @pytest.fixture(scope="session")
