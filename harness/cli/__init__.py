@@ -25,7 +25,7 @@ from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
 DEFAULT_SCENE_FILE = "scenes.yaml"
 # the scenes shipped with shadowbench: beside the harness package in a checkout or an editable
 # install (a wheel does not carry them)
-SHIPPED_SCENE_FILE = Path(__file__).resolve().parent.parent / "scenes.yaml"
+SHIPPED_SCENE_FILE = Path(__file__).resolve().parents[2] / "scenes.yaml"
 MAX_WORKERS = 256
 # OSErrors that say the machine could not finish the command, not that the input was bad
 MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
