@@ -30,6 +30,25 @@ def test_split_depths_follow_the_practical_split_scheme():
     np.testing.assert_allclose(split_depths(0.1, 100.0, 1, 0.3), [0.1, 100.0])
 
 
+@pytest.mark.parametrize("fit", ["frustum", "sdsm"])
+def test_a_runs_stored_splits_follow_its_lambda(fit, evaluate, scene_at):
+    """The split_<i> columns a run records are Zhang et al. 2006's C_i = lam n (f/n)^(i/N) +
+    (1 - lam) (n + (f - n) i/N), worked here, at lambda 0, 0.5 and 1. n and f are the stored
+    split_0 and split_N: what the fit chose (the camera's near and far, or sdsm's visible
+    range), so this checks the lambda's way from the run's parameters into the splits, not the
+    fit. Catches the parameter ignored (the splits always at lambda 0.5)."""
+    splits = 4
+    scene = scene_at("box_plane", 32)
+    for lam in (0.0, 0.5, 1.0):
+        params = {"splits": splits, "lambda": lam, "fit": fit, "res": 64}
+        row = evaluate(scene, "csm", params, samples=1).row
+        stored = [row[f"split_{i}"] for i in range(splits + 1)]
+        n, f = stored[0], stored[-1]
+        expected = [lam * n * (f / n) ** (i / splits) + (1 - lam) * (n + (f - n) * i / splits)
+                    for i in range(splits + 1)]
+        assert stored == pytest.approx(expected, rel=1e-12), f"lambda {lam}"
+
+
 def test_cascade_of_takes_the_first_slice_that_reaches_the_depth():
     """A depth exactly on a split belongs to the nearer slice, as the shader's ``<=`` says;
     beyond the last split, the last cascade. Catches side="right" (the farther slice)."""

@@ -116,6 +116,45 @@ def test_an_off_file_loads_to_trimeshs_triangles(tmp_path):
     np.testing.assert_array_equal(ours(path), trimeshs(path))
 
 
+# three objects (o, o, g), the later objects' v lines after the earlier objects' faces; the faces'
+# vertex indices left to fill in
+OBJ_OF_THREE = """o floor
+v 0 0 0
+v 4 0 0
+v 4 4 0
+v 0 4 0
+f {}
+o wedge
+v 1 1 1
+v 3 1 1
+v 1 3 2
+f {}
+g roof
+v 0 0 3
+v 2 0 3
+v 0 2 3
+v 2 2 4
+f {}
+f {}
+"""
+# relative to the vertices read so far (-1: the last one read)
+RELATIVE_OBJ = OBJ_OF_THREE.format("-4 -3 -2 -1", "-3 -2 -1", "-4 -3 -1", "-4 -1 -2")
+# the same faces counted by hand from the file's first vertex
+ABSOLUTE_OBJ = OBJ_OF_THREE.format("1 2 3 4", "5 6 7", "8 9 11", "8 11 10")
+
+
+def test_relative_indices_count_back_from_the_vertices_read_so_far(tmp_path):
+    """Each object's ``f -3 -2 -1`` names its own vertices, though more follow in the file.
+    The reference is trimesh's reading of ABSOLUTE_OBJ: trimesh 5.2 reads a negative index from
+    the file's last vertex, as Python indexes a list, so its reading of RELATIVE_OBJ is wrong the
+    same way as the broken version caught here (counting from the file's last vertex: the floor
+    and the wedge made of the roof's vertices)."""
+    relative, absolute = tmp_path / "relative.obj", tmp_path / "absolute.obj"
+    relative.write_text(RELATIVE_OBJ)
+    absolute.write_text(ABSOLUTE_OBJ)
+    np.testing.assert_array_equal(ours(relative), trimeshs(absolute))
+
+
 @pytest.mark.parametrize("content, needle", [
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n",
      "line 5: face indexes vertex 9, which does not exist (the file has 3 vertices)"),
