@@ -43,7 +43,7 @@ def targets(part) -> np.ndarray:
 
 def write_gbuffer(frame: Frame, points: np.ndarray, normal) -> None:
     """G-buffer texels 0 .. N-1 (row by row from the bottom): ``points`` covered, each with
-    ``normal``; the others uncovered."""
+    ``normal`` (one for all, or one per point); the others uncovered."""
     position = np.zeros((SIZE * SIZE, 4), np.float32)
     position[:len(points), :3], position[:len(points), 3] = points, 1.0
     normals = np.zeros_like(position)
@@ -89,13 +89,17 @@ def traced(scene, points: np.ndarray, normal=(0.0, 0.0, 0.0), build: str = "lbvh
 def test_rays_at_vertices_and_edges_never_pass_through(build, gl_context):
     """From 2 x each vertex and edge midpoint of a closed icosphere (162 vertices, 480 edges;
     2 x is exact in float32) towards a point light at its centre: every ray meets the sphere
-    (V = 0), whatever the builder. Run against the Moller-Trumbore test in float32 (edge
-    tests u >= 0, v >= 0, u + v <= 1 each rounded on its own; a temporary rt_watertight.glsl)
-    it let 43 of the 642 rays through, with both builders."""
+    (V = 0), whatever the builder. Each receiver faces the light (its normal towards the
+    centre, along its own ray, so the origin offset keeps the ray on its line): with no normal
+    it faces nowhere, no ray is traced, and the test passed with watertight_hit always false.
+    Run against the Moller-Trumbore test in float32 (edge tests u >= 0, v >= 0, u + v <= 1
+    each rounded on its own; a temporary rt_watertight.glsl) it let 43 of the 642 rays
+    through, with both builders."""
     scene = sphere_scene(2)
     points = targets(scene.parts[0])
     assert len(points) == 162 + 480
-    through = np.flatnonzero(traced(scene, 2 * points, build=build) != 0)
+    towards_light = -points / np.linalg.norm(points, axis=1, keepdims=True)
+    through = np.flatnonzero(traced(scene, 2 * points, towards_light, build=build) != 0)
     assert len(through) == 0, f"{len(through)} rays passed through: {points[through][:5]}"
 
 

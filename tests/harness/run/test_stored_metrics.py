@@ -10,7 +10,8 @@ import pytest
 import yaml
 from helpers import result_rows, scene_with, write_scenes
 
-from harness import cli, metrics, results
+from harness import cli, results
+from harness.truth import metrics
 
 EDGE_METRICS = {"edge_mae": metrics.edge_mae, "acne_pct": metrics.acne_pct,
                 "leak_pct": metrics.leak_pct}
