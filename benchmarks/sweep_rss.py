@@ -4,7 +4,9 @@
 
 Plans the experiment and renders it as ``shadowbench run`` does (harness.run.render_serial, in
 this process), printing the process's resident memory as each scene's group begins (after the
-previous group ended and returned what it freed) and its peak at the end. Memory that a
+previous group ended and returned what it freed), the peak of each phase of the group (its
+reference, its interleaved rounds) sampled every 20 ms by a thread, and the whole process's
+peak at the end. Memory that a
 finished group leaves behind shows as growth from one line to the next. Issue 34: four families
 at 10^6 triangles, sm and silhouette at 256 x 256, grew to 1.24 GiB between groups (peak 1.74
 GiB) before the sweep returned freed heap pages after each group, 0.74 GiB (peak 1.55) after.
@@ -16,6 +18,8 @@ import argparse
 import resource
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 from harness import run
@@ -25,13 +29,56 @@ from harness.run.measure import resident_bytes
 MIB = 2 ** 20
 
 
+class _PeakSampler(threading.Thread):
+    """The highest resident memory seen since the last ``take()``, sampled every 20 ms."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.peak = 0
+        self.lock = threading.Lock()
+
+    def run(self) -> None:
+        while True:
+            now = resident_bytes()
+            with self.lock:
+                self.peak = max(self.peak, now)
+            time.sleep(0.02)
+
+    def take(self) -> int:
+        with self.lock:
+            peak, self.peak = max(self.peak, resident_bytes()), resident_bytes()
+        return peak
+
+
 class _Lines:
-    """A progress bar that prints the resident memory as each group's reference begins."""
+    """A progress bar that prints, per scene group, the resident memory as it begins and the
+    peak of its reference and of its rounds."""
+
+    def __init__(self) -> None:
+        self.sampler = _PeakSampler()
+        self.sampler.start()
+        self.group, self.phase = None, None
+        self.peaks: dict[str, dict[str, float]] = {}
 
     def set_description_str(self, text: str) -> None:
-        if text.endswith(": reference"):
-            print(f"{text.removesuffix(': reference'):32s} {resident_bytes() / MIB:7.0f} MiB "
-                  f"resident as it begins", flush=True)
+        group, _, phase = text.rpartition(": ")
+        phase = "reference" if phase == "reference" else "rounds"
+        if (group, phase) == (self.group, self.phase):
+            return
+        self.close_phase()
+        if group != self.group:
+            self.peaks[group] = {"start": resident_bytes() / MIB}
+        self.group, self.phase = group, phase
+
+    def close_phase(self) -> None:
+        peak = self.sampler.take() / MIB
+        if self.group is not None:
+            group = self.peaks[self.group]
+            group[self.phase] = max(group.get(self.phase, 0), peak)
+            if self.phase == "rounds":
+                print(f"{self.group:32s} {group['start']:7.0f} MiB as it begins, reference peak "
+                      f"{group.get('reference', 0):7.0f}, rounds peak {group['rounds']:7.0f} MiB",
+                      flush=True)
 
     def frame_done(self, specs) -> None:
         pass
@@ -47,8 +94,10 @@ def main() -> None:
     print(f"{len(plan.runs)} runs planned, {resident_bytes() / MIB:.0f} MiB resident", flush=True)
     out = Path(args.out or tempfile.mkdtemp(prefix="sweep_rss_"))
     failed = 0
-    for _, row in run.render_serial(plan, plan.runs, out, get_context(), _Lines()):
+    lines = _Lines()
+    for _, row in run.render_serial(plan, plan.runs, out, get_context(), lines):
         failed += row["status"] != "ok"
+    lines.close_phase()
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / MIB
     print(f"end: {resident_bytes() / MIB:.0f} MiB resident, peak {peak:.0f} MiB, "
           f"{failed} runs not ok; results in {out}")
