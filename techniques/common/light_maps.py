@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from OpenGL import GL
@@ -20,6 +21,20 @@ from harness.scene.transforms import CUBE_AXES, LightFrustum, cube_faces, fit_li
 # normal_offset 1e9 took every shadow away without a word).
 MAX_BIAS = MAX_COORDINATE
 MAX_TEXELS = 64.0
+
+# How each depth read's receiver depth is formed (shadow_map.glsl's header): ``slope`` the
+# bound depth - |g| |c - u|, ``receiver_plane`` the plane's extrapolation depth + g . (c - u),
+# ``adaptive`` the depth where the light ray through the read texel's centre meets the
+# receiver's tangent plane (Dou et al. 2014), with neither the constant bias nor slope_bias.
+# Every map technique's ``bias_mode``.
+BiasMode = Literal["slope", "receiver_plane", "adaptive"]
+BIAS_MODES = {"slope": 0, "receiver_plane": 1, "adaptive": 2}
+
+
+def bias_uniforms(mode: str) -> dict:
+    """The uniforms of shadow_map.glsl that pick ``mode``."""
+    return dict(bias_mode=BIAS_MODES[mode])
+
 
 # Clear value of the map: "no occluder in this texel", so every receiver there is lit.
 EMPTY_DEPTH = 3.0e38
@@ -164,7 +179,7 @@ class Sampling:
     bias_min: float = 0.0  # constant bias drawn per sample, scene units
     bias_max: float = 0.0
     slope_bias: float = 1.0  # times the receiver plane's slope x each read's distance
-    receiver_plane: bool = False  # the signed plane's depth at each read, not its bound
+    bias_mode: str = "slope"  # BiasMode: how each read's receiver depth is formed
     normal_offset: float = 0.0  # texels' world size x sin(light angle) along the normal
     window: tuple[int, int] = (0, 0)  # a texel's depths come from offsets window[0]..window[1]
 
@@ -272,6 +287,6 @@ def sampling_uniforms(frame: Frame, sampling: Sampling) -> dict:
     return dict(**camera_rays(frame), grid_n=s.grid_n, footprint_region=s.footprint_region,
                 res_factor=s.res_factor, min_size=s.min_size, spacing=s.spacing,
                 bias_min=s.bias_min, bias_max=s.bias_max, normal_offset=s.normal_offset,
-                receiver_plane=s.receiver_plane, jitter=s.jitter,
+                **bias_uniforms(s.bias_mode), jitter=s.jitter,
                 window_low=np.full(2, float(s.window[0])),
                 window_high=np.full(2, float(s.window[1])), seed=np.uint32(s.seed))

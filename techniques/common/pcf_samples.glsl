@@ -10,7 +10,9 @@
 //   centres or jittered inside them.
 // A constant bias is drawn per sample from [bias_min, bias_max] (the paper's Figure 4), plus
 // the slope term of shadow_map.glsl for the texel the sample reads (and, for depths a map texel
-// holds chosen from a window, to the farthest texel of [window_low, window_high]).
+// holds chosen from a window, to the farthest texel of [window_low, window_high]); under
+// bias_mode adaptive no constant, and the tangent plane's depth on each read's light ray
+// instead of the slope term (shadow_map.glsl).
 // The including shader defines sample_test(texel, depth, bias, window_bias): the per-sample
 // outcome in [0, 1], 1 = lit; `bias` has the slope term of the texel read itself, `window_bias`
 // that of the farthest texel of its window (equal where the window is (0, 0)).
@@ -88,7 +90,8 @@ float filtered_visibility() {
                                 : vec2(0.5);
             vec2 offset = ((vec2(i, j) + place) / float(grid_n) - 0.5) * side * stretch;
             vec2 at = r.texel + offset;
-            float constant = bias_min + (bias_max - bias_min) * random01(pixel, index, 2u);
+            float constant = bias_mode == BIAS_ADAPTIVE
+                             ? 0.0 : bias_min + (bias_max - bias_min) * random01(pixel, index, 2u);
             vec2 centre = floor(at) + 0.5;
             lit += sample_test(at, r.depth,
                                constant + receiver_bias(r, centre, vec2(0.0), vec2(0.0)),

@@ -19,7 +19,8 @@
 // is exact where a pixel quad straddles two surfaces. `bias` stays in scene units (depth
 // precision, the papers' constant Bias); every test also adds `depth_precision`, the float32
 // rounding of coordinates as large as the scene's (techniques/shadowmap.py), which only
-// matters far from the origin.
+// matters far from the origin. That is bias_mode slope, every technique's default;
+// receiver_plane and adaptive form the read's receiver depth otherwise (at receiver_bias).
 // The plane is a guess where the receiver is not planar within the reach of its reads (curved
 // or creased surfaces, a footprint region widened at grazing angles). There the point itself
 // can move before any read: by normal_offset x w x sin(theta), w the texel's world size at the
@@ -63,6 +64,10 @@ uniform bool light_is_ortho;
 uniform float slope_bias;
 uniform float depth_precision;  // float32 rounding of depths this far from the origin
 uniform float normal_offset;  // texels of the map at the point
+uniform int bias_mode;  // BIAS_SLOPE, BIAS_RECEIVER_PLANE or BIAS_ADAPTIVE
+const int BIAS_SLOPE = 0;
+const int BIAS_RECEIVER_PLANE = 1;
+const int BIAS_ADAPTIVE = 2;
 
 // Receiver planes closer to edge-on than this (tan of the angle between normal and light,
 // measured per map texel) take this slope: the bias stays finite.
@@ -80,6 +85,14 @@ struct Receiver {
     float depth;
     bool in_front;
     vec2 depth_slope;  // d depth / d texel on the receiver plane
+    // what bias_mode adaptive needs: the plane's normal, the map's rows at the (moved) point
+    vec3 normal;
+    vec3 row_x;        // rows x, y and w of light_proj x light_view (world -> clip)
+    vec3 row_y;
+    vec3 row_w;
+    float clip_w;      // clip w of the point
+    vec3 depth_w;      // the direction light depth grows along
+    float texel_world; // the texel's larger world side at the point
 };
 
 LightSample to_light(vec3 world) {
@@ -165,26 +178,79 @@ Receiver receiver(vec3 world, vec3 normal) {
     vec2 scaled = b * mat2(a[1].y, -a[0].y, -a[1].x, a[0].x);
     float floor_det = length(scaled) * texels_per_world(j) / MAX_TAN;
     r.depth_slope = scaled / ((det < 0.0 ? -1.0 : 1.0) * max(abs(det), max(floor_det, 1e-30)));
+    if (bias_mode == BIAS_ADAPTIVE) {
+        mat4 m = light_proj * light_view;
+        r.normal = n;
+        r.row_x = vec3(m[0].x, m[1].x, m[2].x);
+        r.row_y = vec3(m[0].y, m[1].y, m[2].y);
+        r.row_w = vec3(m[0].w, m[1].w, m[2].w);
+        r.clip_w = (m * vec4(world, 1.0)).w;
+        r.depth_w = j.depth_w;
+        r.texel_world = 1.0 / texels_per_world(j);
+    }
     return r;
 }
 
 // The slope term of a depth read at texel centre `centre` that may come from any texel centre
 // within [centre + reach_low, centre + reach_high] (0, 0: the texel itself; mdsm: its
-// selection window): slope_bias x |g| x the distance from the point to the farthest of them.
-// With receiver_plane (a technique's knob), Isidoro's and Schueler's receiver-plane depth bias
-// instead: the read is compared with the plane's own depth there, depth + g . (c - u), so the
-// term is slope_bias x -g . (c - u), at its largest over the window (g . d is linear, so its
-// extreme over a box is at a corner, per axis): negative where the plane falls away from the
-// light, which the bound |g| |c - u| over-biases (light leaking under casters near their
-// receivers), exact on a plane, and with no margin at a concave contact (header). Its default
-// is false: on 38 default runs (pcf, mdsm, csm, lispsm on six shipped scenes and the four real
-// ones) it put acne above 0.1 % on 10 runs against 2 (castle's pcf 0.02 -> 0.31 %, jeep's mdsm
-// 0.05 -> 0.61 %), for leaks above 0.1 % on 6 runs against 8 (README).
-uniform bool receiver_plane;
+// selection window), by bias_mode (a technique's knob):
+// - slope: slope_bias x |g| x the distance from the point to the farthest of them (header).
+// - receiver_plane: Isidoro's and Schueler's receiver-plane depth bias: the read is compared
+//   with the plane's own depth there, depth + g . (c - u), so the term is
+//   slope_bias x -g . (c - u), at its largest over the window (g . d is linear, so its extreme
+//   over a box is at a corner, per axis): negative where the plane falls away from the light,
+//   which the bound |g| |c - u| over-biases (light leaking under casters near their
+//   receivers), exact on a plane in an orthographic map, and with no margin at a concave
+//   contact (header).
+// - adaptive (Dou, Yan, Kerzner, Dai, Wyman 2014, "Adaptive depth bias for shadow maps",
+//   JCGT 3(4)): the read is compared with the depth at which the light ray through the texel's
+//   centre meets the receiver's tangent plane (plane_offset), the most lenient of the window's
+//   corners (the depth along a line of texels is a ratio of linear functions: its extremes
+//   over a box are at corners), less an epsilon for rounding alone: ADAPTIVE_SNAP of the
+//   plane's depth change across one texel (the 8 subpixel bits GL rasterizers snap the map's
+//   vertices to) and ADAPTIVE_ROUNDING of the offset (float32), beside depth_precision; the
+//   constant bias and slope_bias are not read (receiver_test, pcf_samples.glsl). In an
+//   orthographic map this is receiver_plane without its constant; in a perspective one (spot
+//   lights, a point light's faces, the warps) the plane's depth is projective in the texel and
+//   only this one is exact (tests/techniques/test_adaptive_bias.py). Like receiver_plane it has
+//   no margin at a concave crease.
+// slope stays the default: on 93 runs at the defaults (sm, pcf, mdsm, csm, lispsm on the 16
+// hard cases, the four real scenes and architecture at 10^5) acne above 0.1 % on 2 runs with
+// slope, 12 with receiver_plane, 26 with adaptive, leaks above 0.1 % on 8, 5 and 4
+// (docs/techniques.md, "The bias modes").
+const float ADAPTIVE_SNAP = 1.0 / 256.0;
+const float ADAPTIVE_ROUNDING = 1.0 / 1048576.0;
+
+// bias_mode adaptive: the light depth, less the point's, at which the light ray through map
+// position c meets the receiver's tangent plane: the displacement d from the point with
+// (row_x - ndc.x row_w) . d = (ndc.x - ndc_u.x) w_u (and y), n . d = 0 (Cramer's rule), so
+// coordinates far from the origin lose nothing. Clamped to MAX_TAN texels' world size per texel
+// of reach, as |g| is; a ray meeting the plane behind the light (or never) gives the far end.
+float plane_offset(Receiver r, vec2 c) {
+    vec2 ndc = c * (2.0 / map_res) - 1.0;
+    vec2 rhs = (c - r.texel) * (2.0 / map_res) * r.clip_w;
+    vec3 a = r.row_x - ndc.x * r.row_w;
+    vec3 b = r.row_y - ndc.y * r.row_w;
+    vec3 bn = cross(b, r.normal), na = cross(r.normal, a);
+    vec3 delta = (rhs.x * bn + rhs.y * na) / dot(a, bn);
+    float offset = dot(r.depth_w, delta);
+    float limit = MAX_TAN * r.texel_world * length(c - r.texel);
+    if (!(r.clip_w + dot(r.row_w, delta) > 0.0) || isnan(offset)) return limit;
+    return clamp(offset, -limit, limit);
+}
 
 float receiver_bias(Receiver r, vec2 centre, vec2 reach_low, vec2 reach_high) {
     vec2 low = centre - r.texel + reach_low, high = centre - r.texel + reach_high;
-    if (receiver_plane) {
+    if (bias_mode == BIAS_ADAPTIVE) {
+        float nearest = plane_offset(r, centre + reach_low);
+        if (reach_low != reach_high) {
+            nearest = min(nearest, plane_offset(r, centre + reach_high));
+            nearest = min(nearest, plane_offset(r, centre + vec2(reach_low.x, reach_high.y)));
+            nearest = min(nearest, plane_offset(r, centre + vec2(reach_high.x, reach_low.y)));
+        }
+        return ADAPTIVE_SNAP * length(r.depth_slope) + ADAPTIVE_ROUNDING * abs(nearest) - nearest;
+    }
+    if (bias_mode == BIAS_RECEIVER_PLANE) {
         vec2 down = -r.depth_slope;
         return slope_bias * (max(down.x * low.x, down.x * high.x)
                              + max(down.y * low.y, down.y * high.y));
@@ -211,5 +277,6 @@ float depth_test(vec2 texel, float depth, float bias) {
 // constant bias and the slope term of that texel's centre. 1 = lit.
 float receiver_test(Receiver r, vec2 at, float constant_bias) {
     vec2 centre = floor(at) + 0.5;
-    return depth_test(at, r.depth, constant_bias + receiver_bias(r, centre, vec2(0.0), vec2(0.0)));
+    float constant = bias_mode == BIAS_ADAPTIVE ? 0.0 : constant_bias;
+    return depth_test(at, r.depth, constant + receiver_bias(r, centre, vec2(0.0), vec2(0.0)));
 }

@@ -16,8 +16,8 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, LightDepthMap,
-                                          depth_precision)
+from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, BiasMode,
+                                          LightDepthMap, bias_uniforms, depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay
@@ -127,7 +127,7 @@ _Params = create_model(
     stabilize=(bool, False),
     bias=(float, Field(0.02, ge=0, le=MAX_BIAS)),
     slope_bias=(float, Field(1.0, ge=0, le=MAX_TEXELS)),
-    receiver_plane=(bool, False),
+    bias_mode=(BiasMode, "slope"),
     normal_offset=(float, Field(0.0, ge=0, le=MAX_TEXELS)),
 )
 
@@ -150,7 +150,7 @@ class CascadedShadowMap(Technique):
 
     Bias: ``shadow_map.glsl``'s rule (``bias`` plus ``slope_bias`` times the receiver plane's
     depth slope per texel times the distance to the texel read, and the point first moved by
-    ``normal_offset`` texels), in each cascade's own texels.
+    ``normal_offset`` texels), in each cascade's own texels; ``bias_mode`` as sm's.
     Columns: ``split_<i>`` the slice bounds (view depths, i = 0..splits) and
     ``cascade_texel_<i>`` each cascade's texel side in world units (orthographic: the same at
     its near end as anywhere). Map ``cascade``: the cascade each pixel used.
@@ -169,9 +169,15 @@ class CascadedShadowMap(Technique):
     ``bias``           constant depth bias, scene units                  0.02      0 .. 1e7
     ``slope_bias``     times the receiver plane's depth slope x the      1.0       0 .. 64
                        distance to the texel read, texels
-    ``receiver_plane`` the slope term signed: the read compared with     false     true, false
-                       the receiver plane's depth at its texel
-                       (Isidoro 2006), not the bound
+    ``bias_mode``      how each read's receiver depth is formed:         slope
+                       ``slope``: less ``slope_bias`` x the plane's
+                       depth slope x the distance (the bound);
+                       ``receiver_plane``: the plane extrapolated
+                       to the texel read (Isidoro 2006), times
+                       ``slope_bias``; ``adaptive``: where the light
+                       ray through the texel's centre meets the
+                       tangent plane, less a rounding epsilon, no
+                       constant or slope term (Dou et al. 2014)
     ``normal_offset``  moves the point along its light-facing normal     0.0       0 .. 64
                        before the read: this many x the texel's world
                        size in the pixel's cascade x sin(the light's
@@ -275,7 +281,7 @@ class CascadedShadowMap(Technique):
             self.shading.set(**uniforms, cascades=len(self.cascades), cascade_res=float(p.res),
                              camera_view=frame.camera.view, bias=p.bias,
                              slope_bias=p.slope_bias, normal_offset=p.normal_offset,
-                             receiver_plane=p.receiver_plane, depth_precision=precision)
+                             depth_precision=precision, **bias_uniforms(p.bias_mode))
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps), fetches_per_px=1,
                             nonfinite=sum(m.nonfinite for m in self.maps),

@@ -17,7 +17,8 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, FilteredShadowMap, Sampling
+from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, FilteredShadowMap,
+                                           Sampling)
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
 
@@ -108,7 +109,11 @@ class MultipleDepthShadowMap(Technique):
     base depth the window's reach too (as before) let grazing receivers pass tests of real
     occluders: on architecture at 10^5 triangles (512 x 512, map 1024) the default's
     edge_mae 0.131 -> 0.117 and mae 0.059 -> 0.052 with the own reach, acne 0.006 -> 0.009 %;
-    ``extra: min``'s leak 0.36 -> 0.18 %. For n = 1 it is pcf's and sm's term.
+    ``extra: min``'s leak 0.36 -> 0.18 %. For n = 1 it is pcf's and sm's term. ``bias_mode``
+    picks how a read's receiver depth is formed (``shadow_map.glsl``): that bound (``slope``),
+    the plane extrapolated (``receiver_plane``) or the tangent plane's depth on the light ray
+    through the texel's centre (``adaptive``: no constant and no slope term); for a window
+    depth the two plane modes take the most lenient of the window's corners.
 
     Empty map cells hold the clear depth 3e38 (lit); representatives are picked, never averaged,
     so no depth overflows. Extra result columns: ``select_fetches`` (q x res^2, 0 for n = 1),
@@ -128,9 +133,15 @@ class MultipleDepthShadowMap(Technique):
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      0 .. 64
                        distance to the farthest texel a depth may come
                        from
-    ``receiver_plane`` the slope term signed: each read compared with    false    true, false
-                       the receiver plane's depth, the largest over its
-                       window (Isidoro 2006), not the bound
+    ``bias_mode``      how each read's receiver depth is formed:         slope
+                       ``slope``: less ``slope_bias`` x the plane's
+                       depth slope x the distance (the bound);
+                       ``receiver_plane``: the plane extrapolated
+                       to the texel read (Isidoro 2006), times
+                       ``slope_bias``; ``adaptive``: where the light
+                       ray through the texel's centre meets the
+                       tangent plane, less a rounding epsilon, no
+                       constant or slope term (Dou et al. 2014)
     ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
@@ -157,7 +168,7 @@ class MultipleDepthShadowMap(Technique):
         extra: Literal["max", "min"] = "max"
         bias: float = Field(0.02, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
-        receiver_plane: bool = False
+        bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
 
         @field_validator("n", "k", "q", mode="wrap")
@@ -221,7 +232,7 @@ class MultipleDepthShadowMap(Technique):
         self.passes.shade(frame, Sampling(grid_n=math.isqrt(p.k), bias_min=p.bias,
                                           bias_max=p.bias, slope_bias=p.slope_bias,
                                           normal_offset=p.normal_offset,
-                                          receiver_plane=p.receiver_plane,
+                                          bias_mode=p.bias_mode,
                                           window=self.selection.window if self.selection else (0, 0)),
                           texture=self.selection.texture if self.selection else None)
         q = p.q if self.selection else 0

@@ -11,7 +11,8 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, FilteredShadowMap, Sampling
+from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, FilteredShadowMap,
+                                           Sampling)
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
 
@@ -40,7 +41,10 @@ class PercentageCloserFiltering(Technique):
     (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006): samples far out in a large
     region get the bias their distance needs,
     which one constant cannot give for every region, scene size and map size (Reeves et al.
-    tune Bias per scene). Points behind the light or outside the map count as lit. A point
+    tune Bias per scene). ``bias_mode`` picks how each sample's receiver depth is formed
+    (``shadow_map.glsl``): that bound (``slope``), the plane extrapolated (``receiver_plane``)
+    or the tangent plane's depth on the light ray through the texel's centre (``adaptive``:
+    no constant and no slope term). Points behind the light or outside the map count as lit. A point
     light gets sm's cube of six faces, each face's 90 degrees over ``res`` texels and 32 more
     texels of its neighbours' directions on every side (half the largest region), so no
     sample of a point near a face's edge falls off its face.
@@ -60,9 +64,15 @@ class PercentageCloserFiltering(Technique):
     ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       bias_min .. 1e7
     ``slope_bias``     times the receiver plane's depth slope x each    1.0        0 .. 64
                        sample's distance to its texel, texels
-    ``receiver_plane`` the slope term signed: each sample compared      false      true, false
-                       with the receiver plane's depth at its texel
-                       (Isidoro 2006), not the bound |g| x distance
+    ``bias_mode``      how each read's receiver depth is formed:        slope
+                       ``slope``: less ``slope_bias`` x the plane's
+                       depth slope x the distance (the bound);
+                       ``receiver_plane``: the plane extrapolated
+                       to the texel read (Isidoro 2006), times
+                       ``slope_bias``; ``adaptive``: where the light
+                       ray through the texel's centre meets the
+                       tangent plane, less a rounding epsilon, no
+                       constant or slope term (Dou et al. 2014)
     ``normal_offset``  moves the point along its light-facing normal    0.0        0 .. 64
                        before the samples: this many x the texel's
                        world size there x sin(the light's angle)
@@ -88,7 +98,7 @@ class PercentageCloserFiltering(Technique):
         bias_min: float = Field(0.02, ge=0, le=MAX_BIAS)
         bias_max: float = Field(0.04, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
-        receiver_plane: bool = False
+        bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
         seed: int = Field(0, ge=0, lt=2**32)
 
@@ -111,7 +121,7 @@ class PercentageCloserFiltering(Technique):
             res_factor=p.res_factor, min_size=p.min_size, spacing=p.res_factor,
             jitter=p.sampling == "jitter", seed=p.seed, bias_min=p.bias_min,
             bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset,
-            receiver_plane=p.receiver_plane))
+            bias_mode=p.bias_mode))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=p.k,
                             nonfinite=self.passes.map.nonfinite)
 

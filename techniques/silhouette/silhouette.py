@@ -15,7 +15,8 @@ from harness.gl.shaders import Program
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, fit_light
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
+from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
+                                           bias_uniforms)
 from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh
 
 HERE = Path(__file__).parent
@@ -66,8 +67,10 @@ class SilhouetteMap(Technique):
     front face, box_plane at map 256). Each corner test gets ``bias`` (scene units) plus
     ``slope_bias`` times the receiver plane's depth slope per texel times that corner's
     distance from the point (``shadow_map.glsl``, after Isidoro 2006 and Schueler 2006), the
-    rule every map technique here shares. The hidden-silhouette test of pass 2 compares a
-    silhouette point's own depth with the corners and uses ``bias`` alone.
+    rule every map technique here shares (``bias_mode`` as sm's: under ``adaptive`` the corner
+    tests take neither ``bias`` nor ``slope_bias``). The hidden-silhouette test of pass 2
+    compares a silhouette point's own depth with the corners and uses ``bias`` alone, in every
+    ``bias_mode``.
 
     Extra result columns: ``sil_pct`` (percent of shaded pixels that took the silhouette path,
     counted by atomic counters in an untimed repeat of the shading pass), ``model_bytes_per_px``
@@ -86,6 +89,15 @@ class SilhouetteMap(Technique):
     ``bias``            constant depth bias, scene units                0.02     0 .. 1e7
     ``slope_bias``      times the receiver plane's depth slope x each   1.0      0 .. 64
                         corner's distance, texels
+    ``bias_mode``       how each read's receiver depth is formed:       slope
+                        ``slope``: less ``slope_bias`` x the plane's
+                        depth slope x the distance (the bound);
+                        ``receiver_plane``: the plane extrapolated
+                        to the texel read (Isidoro 2006), times
+                        ``slope_bias``; ``adaptive``: where the light
+                        ray through the texel's centre meets the
+                        tangent plane, less a rounding epsilon, no
+                        constant or slope term (Dou et al. 2014)
     ``normal_offset``   moves the shaded point along its light-facing   0.0      0 .. 64
                         normal before its tests, by this many x the
                         texel's world size there x the sine of the
@@ -109,6 +121,7 @@ class SilhouetteMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
         center_points: bool = False
 
@@ -164,7 +177,7 @@ class SilhouetteMap(Technique):
         unit = frame.bind_gbuffer(program)
         program.set(**self.depth_map.lookup_uniforms(unit, p.slope_bias, frame))
         program.set(silhouette_map=self.silhouette_fbo.colors[0].bind(unit + 1), bias=p.bias,
-                    normal_offset=p.normal_offset)
+                    normal_offset=p.normal_offset, **bias_uniforms(p.bias_mode))
         frame.draw_fullscreen(covered_only=True)  # V = 1 and nothing counted where no surface
 
     def _count_diagnostics(self, frame: Frame) -> None:

@@ -8,7 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, MapShading
+from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, BiasMode, MapShading, bias_uniforms
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 
@@ -24,7 +24,11 @@ class ShadowMap(Technique):
     the centre of the point's texel, up to half a texel away from the point in each axis; the
     bias is ``bias`` plus ``slope_bias`` times the receiver plane's depth slope per texel
     times that distance (``shadow_map.glsl``, after the receiver plane of Isidoro 2006 and
-    Schueler 2006), the rule every map technique here shares.
+    Schueler 2006), the rule every map technique here shares. ``bias_mode`` picks how the
+    read's receiver depth is formed (``shadow_map.glsl``): that bound (``slope``, the default),
+    the receiver plane extrapolated to the texel's centre (``receiver_plane``), or the depth
+    where the light ray through the texel's centre meets the point's tangent plane
+    (``adaptive``, Dou et al. 2014: no constant and no slope term, a rounding epsilon only).
 
     =================  ================================================  =======  ===========
     Parameter          Meaning                                           Default  Range
@@ -33,6 +37,15 @@ class ShadowMap(Technique):
     ``bias``           constant depth bias, scene units                  0.02     0 .. 1e7
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      0 .. 64
                        distance to the texel read, texels
+    ``bias_mode``      how each read's receiver depth is formed:         slope
+                       ``slope``: less ``slope_bias`` x the plane's
+                       depth slope x the distance (the bound);
+                       ``receiver_plane``: the plane extrapolated
+                       to the texel read (Isidoro 2006), times
+                       ``slope_bias``; ``adaptive``: where the light
+                       ray through the texel's centre meets the
+                       tangent plane, less a rounding epsilon, no
+                       constant or slope term (Dou et al. 2014)
     ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before the read: this many x the texel's world
                        size there x the sine of the light's angle
@@ -53,6 +66,7 @@ class ShadowMap(Technique):
         res: int = Field(1024, ge=16, le=8192)
         bias: float = Field(0.02, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
+        bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
 
     def prepare(self, frame: Frame) -> None:
@@ -63,7 +77,8 @@ class ShadowMap(Technique):
 
     def render(self, frame: Frame) -> ShadowOutput:
         p = self.params
-        self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset)
+        self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset,
+                           **bias_uniforms(p.bias_mode))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
                             nonfinite=self.passes.map.nonfinite)
 

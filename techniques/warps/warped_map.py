@@ -18,7 +18,8 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
+from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
+                                           bias_uniforms)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
@@ -64,9 +65,15 @@ PARAMETER_TABLE = """
     ``slope_bias``     times the receiver plane's depth slope x each     1.0      0 .. 64
                        read's distance, in the warped map's texels
                        (shadow_map.glsl)
-    ``receiver_plane`` the slope term signed: each read compared with    false    true, false
-                       the receiver plane's depth at its texel
-                       (Isidoro 2006), not the bound
+    ``bias_mode``      how each read's receiver depth is formed:         slope
+                       ``slope``: less ``slope_bias`` x the plane's
+                       depth slope x the distance (the bound);
+                       ``receiver_plane``: the plane extrapolated
+                       to the texel read (Isidoro 2006), times
+                       ``slope_bias``; ``adaptive``: where the light
+                       ray through the texel's centre meets the
+                       tangent plane, less a rounding epsilon, no
+                       constant or slope term (Dou et al. 2014)
     ``normal_offset``  moves the point along its light-facing normal     0.0      0 .. 64
                        before its reads: this many x the warped map's
                        texel's world size there x sin(the light's angle)
@@ -79,7 +86,7 @@ class WarpParams(TechniqueParams):
     res: int = Field(1024, ge=16, le=8192)
     bias: float = Field(0.02, ge=0, le=MAX_BIAS)
     slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
-    receiver_plane: bool = False
+    bias_mode: BiasMode = "slope"
     normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
     k: SquareInt = Field(1, le=49)
 
@@ -157,7 +164,7 @@ class WarpedShadowMap(Technique):
             unit = frame.bind_gbuffer(self.shading)
             self.shading.set(**self.map.lookup_uniforms(unit, p.slope_bias, frame),
                              grid_n=math.isqrt(p.k), bias=p.bias, normal_offset=p.normal_offset,
-                             receiver_plane=p.receiver_plane)
+                             **bias_uniforms(p.bias_mode))
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
         warnings = []
         if self.columns["outside_pct"] > 0:

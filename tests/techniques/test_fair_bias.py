@@ -41,7 +41,7 @@ PLATES = ("real_plates' stacked thin plates under a grazing sun: MDSM leaks 0.63
           "with no slope term still 0.37 % (and 58 % acne), with one depth per cell (n 1) "
           "0.15 %, with the 2 x 2 window (q 4) 0.37 %: most of it is the extra depth the "
           "9-texel window selects (the max of the window behind a thin plate's edge), Pagot "
-          "et al.'s method, not the bias; receiver_plane takes 0.14 off at 0.28 % acne")
+          "et al.'s method, not the bias; bias_mode receiver_plane takes 0.14 off at 0.28 % acne")
 EXCEPTIONS = {
     ("real_plates", CORPUS_MAP, "mdsm"): PLATES,
     **{("terrain_long", res, t): TERRAIN for res in MAPS for t in FILTERED},

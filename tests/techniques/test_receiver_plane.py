@@ -1,6 +1,7 @@
 """Receiver-plane depth bias (issue 32 item 3; Isidoro, GDC 2006; Schueler, ShaderX5): with
-``receiver_plane`` each filter sample is compared with the receiver plane's own depth at the
-texel it reads, depth + g . (c - u), instead of the bound depth - |g| |c - u|."""
+``bias_mode: receiver_plane`` each filter sample is compared with the receiver plane's own
+depth at the texel it reads, depth + g . (c - u), instead of the bound depth - |g| |c - u|
+(``bias_mode: slope``). ``bias_mode: adaptive``: tests/techniques/test_adaptive_bias.py."""
 
 from __future__ import annotations
 
@@ -40,8 +41,8 @@ def test_one_samples_comparison_depth_by_hand():
     through the sample's texel meets the plane t further along the light, t = -h 10 (n . e) /
     (n . d); the receiver-plane extrapolation depth + g . (c - u), g = h tan(theta) per texel
     along that axis (theta the light's angle from the normal), gives the same depth. The bound
-    that receiver_plane replaces, depth - |g| |c - u|, is 2 g . (c - u) = 0.49 units nearer
-    the light here: the over-bias that lets light leak under casters near their receivers."""
+    that bias_mode receiver_plane replaces, depth - |g| |c - u|, is 2 g . (c - u) = 0.49 units
+    nearer the light here: the over-bias that lets light leak under casters near their receivers."""
     n, d = normal(), np.asarray(LIGHT) / np.linalg.norm(LIGHT)
     e = n - (n @ d) * d
     e = e / np.linalg.norm(e)  # in the map's plane, the way the receiver falls away
@@ -62,8 +63,8 @@ def test_receiver_plane_clears_a_grazing_plane_at_k_64(tilted_plane, evaluate):
     """At k = 64 over the footprint region (up to 64 texels at this angle), the defaults'
     constant bias alone shadows 94 % of the plane; the receiver plane leaves none, with no
     constant bias at all. Over-extrapolated by 10 % (slope_bias 1.1) the downhill samples
-    compare deeper than the plane and 94 % are in acne again, where the bound (receiver_plane
-    off) at 1.1 leaves none: the comparison depth is the plane's, not a margin. Broken versions
+    compare deeper than the plane and 94 % are in acne again, where the bound (bias_mode
+    slope) at 1.1 leaves none: the comparison depth is the plane's, not a margin. Broken versions
     caught: the knob not reaching the shader (the bound: no acne at 1.1), the sign of g . (c - u)
     flipped (acne at 1.0). (mdsm's window corners' maximum taken as a minimum is not caught
     here: on a plane its selected depths pass either way.)"""
@@ -71,9 +72,9 @@ def test_receiver_plane_clears_a_grazing_plane_at_k_64(tilted_plane, evaluate):
         return evaluate(tilted_plane, "pcf", {"k": 64, **params}).row["acne_pct"]
 
     assert acne(slope_bias=0.0) > 50.0
-    assert acne(receiver_plane=True) == 0.0
-    assert acne(receiver_plane=True, bias_min=0.0, bias_max=0.0) == 0.0
-    assert acne(receiver_plane=True, bias_min=0.0, bias_max=0.0, slope_bias=1.1) > 50.0
+    assert acne(bias_mode="receiver_plane") == 0.0
+    assert acne(bias_mode="receiver_plane", bias_min=0.0, bias_max=0.0) == 0.0
+    assert acne(bias_mode="receiver_plane", bias_min=0.0, bias_max=0.0, slope_bias=1.1) > 50.0
     assert acne(bias_min=0.0, bias_max=0.0, slope_bias=1.1) == 0.0
 
 
@@ -90,7 +91,7 @@ def test_every_filtering_map_takes_the_knob(tilted_plane, evaluate, technique, p
     lispsm 23 % at 2, the bound 0 % at 2, 5 or 20). Broken version caught: a technique whose
     shader never gets the uniform (no acne when over-extrapolated)."""
     def acne(**more):
-        return evaluate(tilted_plane, technique, {**params, "receiver_plane": True,
+        return evaluate(tilted_plane, technique, {**params, "bias_mode": "receiver_plane",
                                                   **more}).row["acne_pct"]
 
     assert acne() == 0.0
@@ -115,6 +116,6 @@ def test_a_point_lights_cube_takes_the_knob(tmp_path, evaluate):
     def acne(**params):
         return evaluate(built, "pcf", {"k": 64, **params}).row["acne_pct"]
 
-    assert acne(receiver_plane=True) == 0.0
-    assert acne(receiver_plane=True, slope_bias=1.5) > 50.0
+    assert acne(bias_mode="receiver_plane") == 0.0
+    assert acne(bias_mode="receiver_plane", slope_bias=1.5) > 50.0
     assert acne(slope_bias=2.0) == 0.0

@@ -14,6 +14,7 @@ class BiasedShadowMap(ShadowMap):
     ``res``            map width and height, texels                1024     16 .. 8192
     ``bias``           constant depth bias, scene units            0.05     >= 0
     ``slope_bias``     times the receiver plane's depth slope      1.0      >= 0
+    ``bias_mode``      slope, receiver_plane or adaptive           slope
     ``normal_offset``  along the normal, times the texel's size    0.0      >= 0
     =================  ==========================================  =======  ===========
     """
