@@ -1,5 +1,5 @@
 // A point light's map (shadow_map.glsl with CUBE_FACES): six perspective faces, the layers of
-// one array, each a linear-depth map along its own axis (harness.transforms.cube_faces). A
+// one array, each a linear-depth map along its own axis (harness.scene.transforms.cube_faces). A
 // shaded point takes the face its direction from the light falls in, by the largest
 // component; that face's view then stands for light_view in every lookup and bias of the
 // point, so the bias rule is the one of a single map, per face texel. For pcf the faces are

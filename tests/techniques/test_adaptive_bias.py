@@ -115,7 +115,7 @@ def test_one_receivers_adaptive_bias_by_hand(tmp_path, gl_context, light):
     Broken versions caught: the texel centre off by half a texel (the offset misses by |g| / 2,
     about 128 epsilon), the normal ignored (a plane facing the light: offset 0), the
     perspective division left out (the spot light's offsets)."""
-    from harness.transforms import fit_light
+    from harness.scene.transforms import fit_light
 
     scene = scene_of(tmp_path, "tilted", [{"shape": "plane", "size": [16, 16],
                                            "rotate": [TILT, 0, 0]}], light)
