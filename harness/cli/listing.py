@@ -72,7 +72,7 @@ def techniques_lines() -> list[str]:
     lines = ["techniques:"]
     for name, cls in registry.techniques().items():
         dist = registry.distribution_of(name)
-        plugin = f" (plugin: {dist})" if dist != registry.OWN_DISTRIBUTION else ""
+        plugin = f" (plugin: {dist})" if registry.is_plugin(name) else ""
         lines.append(f"  {name:10s} {cls.summary}  [{cls.paper}]{plugin}")
         for pname, default, range_text in parameter_rows(cls):
             lines.append(f"      {pname:14s} default {default:11s} {range_text}")
@@ -103,6 +103,15 @@ def scenes_lines(path: Path | None) -> list[str]:
                 parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
                 lines.append(f"      mesh {obj.label}: {parts.summary()}")
     return lines
+
+
+def experiments_lines() -> list[str]:
+    """The shipped experiments, by the name ``run`` and ``plan`` take from any folder."""
+    names = config.shipped.experiments()
+    if not names:
+        return ["experiments: none shipped with this installation"]
+    return [f"experiments (shipped in {config.shipped.root() / 'experiments'}; "
+            "`shadowbench run NAME --out DIR` from any folder):", f"  {', '.join(names)}"]
 
 
 def inspect_lines(path: Path, name: str) -> list[str]:

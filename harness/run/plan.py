@@ -283,7 +283,7 @@ def _notes(included: list[str], broken: dict[str, str]) -> list[str]:
     sweep of every technique takes in every installed one), on one line, and the broken entry
     points it leaves out, each with the reason."""
     plugins = [f"{name} ({registry.distribution_of(name)})" for name in included
-               if registry.distribution_of(name) != registry.OWN_DISTRIBUTION]
+               if registry.is_plugin(name)]
     notes = [f"installed plugins in this plan: {', '.join(plugins)}"] if plugins else []
     return notes + [f"left out, broken: {name}: {why}" for name, why in broken.items()]
 
