@@ -22,7 +22,7 @@ from .motion_schema import MAX_ORBIT_DEG, MIN_DOLLY, Motion, ObjectMotion
 from .scene_schema import (LIGHT_TYPES, Array, Box, Camera, Capsule, Cylinder, DirectionalLight,
                            Family, Lathe, Light, MeshFile, Placed, Plane, PointLight, Scene,
                            SceneFile, SceneObject, Sphere, SpotLight, TriangleCount,
-                           check_resolution, load_scenes)
+                           check_resolution, check_scenes, load_scenes)
 from .types_as_written import TypesAsWritten
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
                           read_yaml, validation_error)
@@ -36,7 +36,7 @@ __all__ = [
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
     "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "TriangleCount", "TypesAsWritten", "Vec3",
-    "cache_root", "check_name", "check_resolution", "key_error", "line_of",
+    "cache_root", "check_name", "check_resolution", "check_scenes", "key_error", "line_of",
     "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path", "shipped",
     "square_number", "validation_error", "with_timing",
 ]
