@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup test bench report motion scale compare microbench microbench-compare reproduce lint clean
+.PHONY: setup plugin test bench report motion scale compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -24,11 +24,25 @@ $(STAMPS)/debs:
 	fi
 	@touch $@
 
+# The distribution is hard-shadow-bench (`shadowbench` on PyPI is another project). A .venv made
+# before the project took that name holds it as `shadowbench`: uninstalled first (only when its
+# entry points are this project's techniques), or every technique would be registered twice.
 $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 	@test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
+	@if $(PY) -c "import importlib.metadata as m, sys; \
+	  sys.exit(not any(e.value.startswith('techniques.') for e in \
+	  m.distribution('shadowbench').entry_points.select(group='shadowbench.techniques')))" \
+	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; fi
 	$(PY) -m pip install -q -e '.[dev]'
 	@touch $@
+
+# A technique of your own (a folder with its pyproject.toml, e.g. a copy of examples/plugin)
+# installed into .venv in editable mode: make plugin PLUGIN=path/to/it
+plugin: setup
+	@test -n "$(PLUGIN)" || { echo "usage: make plugin PLUGIN=path/to/your/plugin"; exit 2; }
+	$(PY) -m pip install -q -e $(PLUGIN)
+	$(VENV)/bin/shadowbench list | grep -i -A1 "plugin:" || true
 
 # benchmarks run once each as plain tests here (their timings are make microbench's job)
 test: setup

@@ -101,3 +101,21 @@ def test_the_checks_see_the_pages_links_and_paths():
     pages = {f"docs/{p.name}" for p in PAGES[1:]}
     assert pages <= readme_links, f"README links to no {sorted(pages - readme_links)}"
     assert sum(len(named_paths(p)) for p in PAGES) > 50
+
+
+def test_the_run_counts_of_make_bench_are_what_it_plans():
+    """Every "N runs" in the README, and docs/experiments.md's count of ``plan
+    experiments/default.yaml``, is the number of runs make bench's experiment plans. Broken
+    version caught (the old README): 554 runs in the text and 551 in the screenshot's
+    caption."""
+    from harness.run import plan_runs
+
+    plan = plan_runs(experiment_path=str(ROOT / "experiments" / "default.yaml"),
+                     scene_file=str(ROOT / "scenes.yaml"), scenes=None, techniques=None,
+                     overrides={})
+    readme = [int(n.replace(",", "")) for n in
+              re.findall(r"\b(\d[\d,]*) runs\b", prose((ROOT / "README.md").read_text()))]
+    experiments = re.findall(r"plan experiments/default.yaml` says (\d+) runs",
+                             " ".join((ROOT / "docs" / "experiments.md").read_text().split()))
+    assert readme and experiments, (readme, experiments)
+    assert set(readme) | {int(n) for n in experiments} == {len(plan.runs)}

@@ -19,13 +19,10 @@ import warnings
 from pathlib import Path
 
 from ..machine import interrupt
-from ..config import ConfigError
+from ..config import ConfigError, shipped
 from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
-# the scenes shipped with shadowbench: beside the harness package in a checkout or an editable
-# install (a wheel does not carry them)
-SHIPPED_SCENE_FILE = Path(__file__).resolve().parents[2] / "scenes.yaml"
 MAX_WORKERS = 256
 # OSErrors that say the machine could not finish the command, not that the input was bad
 MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
@@ -64,16 +61,15 @@ def _check_out(text: str) -> None:
 
 def scene_file(text: str | None) -> Path | None:
     """The scene file a command reads: ``--scene-file`` as given (a missing one is bad input),
-    else ./scenes.yaml, else the scenes shipped beside the installed package (a source checkout
-    or an editable install); None when there is none."""
+    else ./scenes.yaml, else the scenes shipped with the package (:mod:`harness.config.shipped`:
+    a wheel's package data, or a checkout's root); None when there is none."""
     if text is not None:
         if not Path(text).exists():  # a FIFO, socket or folder is said by the reader
             raise ConfigError(f"--scene-file {text}: no such file")
         return Path(text)
-    for path in (Path(DEFAULT_SCENE_FILE), SHIPPED_SCENE_FILE):
-        if path.is_file():
-            return path
-    return None
+    if Path(DEFAULT_SCENE_FILE).is_file():
+        return Path(DEFAULT_SCENE_FILE)
+    return shipped.scene_file()
 
 
 def _scene_file_or_error(text: str | None) -> str:
@@ -97,6 +93,7 @@ def cmd_list(args) -> int:
         return 0
     print("\n".join(listing.techniques_lines()))
     print("\n".join(listing.scenes_lines(scene_file(args.scene_file))))
+    print("\n".join(listing.experiments_lines()))
     for line in registry.stale_installs():
         print(f"warning: {line}", file=sys.stderr)
     registry.baseline()
@@ -106,8 +103,9 @@ def cmd_list(args) -> int:
 def _plan(args):
     from .. import run
 
+    experiment = str(shipped.experiment_file(args.experiment)) if args.experiment else None
     return run.plan_runs(
-        experiment_path=args.experiment, scene_file=_scene_file_or_error(args.scene_file),
+        experiment_path=experiment, scene_file=_scene_file_or_error(args.scene_file),
         scenes=_names("--scenes", args.scenes),
         techniques=_names("--techniques", args.techniques),
         overrides=run.parse_overrides(args.set or []),
@@ -260,7 +258,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     def planning(q):
         """The options that choose the runs: ``run``'s and ``plan``'s."""
-        q.add_argument("experiment", nargs="?", help="experiment YAML (experiments/*.yaml)")
+        q.add_argument("experiment", nargs="?",
+                       help="experiment YAML: a path, or a shipped one by name (default, "
+                            "hard_cases, papers/sv: `shadowbench list` names them)")
         scene_file_option(q)
         q.add_argument("--scenes", help="comma-separated scene names")
         q.add_argument("--techniques", help="comma-separated technique names")

@@ -53,8 +53,58 @@ def _limit(meta) -> str | None:
     return None  # other metadata (strictness, ...) says nothing about the range
 
 
+PROBED = 10_000  # the widest range of an int field whose values a validator is asked about
+SHOWN = 16  # the most accepted values listed one by one
+
+
+def _bounds(field) -> tuple[int | None, int | None]:
+    """An int field's inclusive bounds from its Field(ge=, gt=, le=, lt=)."""
+    import annotated_types as at
+
+    low = high = None
+    for meta in field.metadata:
+        if isinstance(meta, at.Ge):
+            low = meta.ge
+        elif isinstance(meta, at.Gt):
+            low = meta.gt + 1
+        elif isinstance(meta, at.Le):
+            high = meta.le
+        elif isinstance(meta, at.Lt):
+            high = meta.lt - 1
+    return low, high
+
+
+def _validated(cls, pname: str, field) -> str | None:
+    """What a field validator of ``Params`` (``@field_validator``, invisible in the type and
+    its bounds) leaves of an int field's range: each value in the bounds asked of Params with
+    the other parameters at their defaults; ``one of 2, 4``, or how many pass when more than
+    :data:`SHOWN` do; None when there is no such validator or it refuses none."""
+    from pydantic import ValidationError
+
+    validators = cls.Params.__pydantic_decorators__.field_validators.values()
+    if field.annotation is not int or not any(
+            pname in v.info.fields or "*" in v.info.fields for v in validators):
+        return None
+    low, high = _bounds(field)
+    if low is None or high is None or not 0 <= high - low <= PROBED:
+        return None
+    accepted = []
+    for value in range(low, high + 1):
+        try:
+            cls.Params(**{pname: value})
+        except ValidationError:
+            continue
+        accepted.append(value)
+    if len(accepted) == high - low + 1:
+        return None
+    if len(accepted) <= SHOWN:
+        return "one of " + ", ".join(map(str, accepted)) if accepted else "no value"
+    return f"{len(accepted)} values in {low} .. {high} (a validator refuses the others)"
+
+
 def parameter_rows(cls) -> list[tuple[str, str, str]]:
-    """(name, default, allowed values) of each parameter of a technique's Params."""
+    """(name, default, allowed values) of each parameter of a technique's Params: the type,
+    then its bounds, or what a field validator leaves of them (:func:`_validated`)."""
     from pydantic_core import PydanticUndefined
 
     rows = []
@@ -62,7 +112,9 @@ def parameter_rows(cls) -> list[tuple[str, str, str]]:
         default = (field.default_factory() if field.default_factory is not None
                    else "(required)" if field.default is PydanticUndefined else field.default)
         limits = [text for text in map(_limit, field.metadata) if text]
-        rows.append((pname, _show(default), ", ".join([_allowed(field.annotation)] + limits)))
+        validated = _validated(cls, pname, field)
+        rows.append((pname, _show(default), ", ".join(
+            [_allowed(field.annotation)] + ([validated] if validated else limits))))
     return rows
 
 
@@ -72,7 +124,7 @@ def techniques_lines() -> list[str]:
     lines = ["techniques:"]
     for name, cls in registry.techniques().items():
         dist = registry.distribution_of(name)
-        plugin = f" (plugin: {dist})" if dist != registry.OWN_DISTRIBUTION else ""
+        plugin = f" (plugin: {dist})" if registry.is_plugin(name) else ""
         lines.append(f"  {name:10s} {cls.summary}  [{cls.paper}]{plugin}")
         for pname, default, range_text in parameter_rows(cls):
             lines.append(f"      {pname:14s} default {default:11s} {range_text}")
@@ -103,6 +155,15 @@ def scenes_lines(path: Path | None) -> list[str]:
                 parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)
                 lines.append(f"      mesh {obj.label}: {parts.summary()}")
     return lines
+
+
+def experiments_lines() -> list[str]:
+    """The shipped experiments, by the name ``run`` and ``plan`` take from any folder."""
+    names = config.shipped.experiments()
+    if not names:
+        return ["experiments: none shipped with this installation"]
+    return [f"experiments (shipped in {config.shipped.root() / 'experiments'}; "
+            "`shadowbench run NAME --out DIR` from any folder):", f"  {', '.join(names)}"]
 
 
 def inspect_lines(path: Path, name: str) -> list[str]:

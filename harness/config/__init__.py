@@ -1,6 +1,7 @@
 """The scene file and experiment schema, validated at load. From the bottom up: limits,
 yaml_source, cache_entry (verified cache entries), mesh_formats, mesh_files, types_as_written,
-scene_schema, experiment_schema; each name is ``harness.config.X``.
+scene_schema, experiment_schema; beside them shipped (where the shipped scenes and experiments
+lie); each name is ``harness.config.X``.
 
 Every problem is a :class:`ConfigError` whose one-line message names the file, the key path
 and (where the YAML has it) the line, e.g.
@@ -16,11 +17,12 @@ from .limits import (DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, M
                      NAME_PATTERN)
 from .field_types import Coordinate, FieldOfView, Size, SquareInt, Strict, Vec3, square_number
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
+from . import shipped
 from .motion_schema import MAX_ORBIT_DEG, MIN_DOLLY, Motion, ObjectMotion
 from .scene_schema import (LIGHT_TYPES, Array, Box, Camera, Capsule, Cylinder, DirectionalLight,
                            Family, Lathe, Light, MeshFile, Placed, Plane, PointLight, Scene,
                            SceneFile, SceneObject, Sphere, SpotLight, TriangleCount,
-                           check_resolution, load_scenes)
+                           check_resolution, check_scenes, load_scenes)
 from .types_as_written import TypesAsWritten
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
                           read_yaml, validation_error)
@@ -34,7 +36,7 @@ __all__ = [
     "ObjectMotion", "Placed", "Plane", "PointLight", "ReferenceSettings", "Scalar", "Scene",
     "SceneFile", "SceneSettings", "SceneObject", "Size", "Sphere", "SpotLight", "SquareInt",
     "Strict", "TriangleCount", "TypesAsWritten", "Vec3",
-    "cache_root", "check_name", "check_resolution", "key_error", "line_of",
-    "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path",
+    "cache_root", "check_name", "check_resolution", "check_scenes", "key_error", "line_of",
+    "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path", "shipped",
     "square_number", "validation_error", "with_timing",
 ]

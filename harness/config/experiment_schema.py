@@ -20,9 +20,11 @@ Scalar = Union[bool, int, float, str]
 
 class Grid(Strict):
     """One parameter grid: every combination of ``product`` times each row of ``zip``,
-    with ``set`` fixed; or, with ``curve``, the technique's quality curve from ``set`` (true:
-    every declared knob and value; a mapping: those knobs, with these values), expanded by the
-    planner, which knows the techniques' declarations."""
+    with ``set`` fixed, less those ``exclude`` matches (each entry a partial combination,
+    ``{cull: cull, method: nearclip}``: every combination with all of its values is left out);
+    or, with ``curve``, the technique's quality curve from ``set`` (true: every declared knob
+    and value; a mapping: those knobs, with these values), expanded by the planner, which
+    knows the techniques' declarations."""
 
     # a non-finite value is the technique's error (run.plan.validate_params), named there
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=True)
@@ -31,12 +33,13 @@ class Grid(Strict):
     zip: dict[str, list[Scalar]] = {}
     set: dict[str, Scalar] = {}
     curve: Union[Literal[True], dict[str, list[Scalar]], None] = None
+    exclude: list[dict[str, Scalar]] = []
 
     @model_validator(mode="after")
     def _nonempty(self):
-        if self.curve is not None and (self.product or self.zip):
-            raise ValueError("curve: goes with set only, not with product or zip (a curve walks "
-                             "one knob at a time)")
+        if self.curve is not None and (self.product or self.zip or self.exclude):
+            raise ValueError("curve: goes with set only, not with product, zip or exclude (a "
+                             "curve walks one knob at a time)")
         if isinstance(self.curve, dict):
             if not self.curve:
                 raise ValueError("curve: is empty; name a quality knob with its values, or "
@@ -57,11 +60,30 @@ class Grid(Strict):
         lengths = {len(v) for v in self.zip.values()}
         if len(lengths) > 1:
             raise ValueError(f"zip lists must have equal lengths, got {sorted(lengths)}")
+        self._check_exclude()
         return self
 
+    def _check_exclude(self) -> None:
+        """Each exclusion names parameters of product or zip, with values they list: a typo
+        (``nearclp``) would otherwise exclude nothing, silently."""
+        given = {**{k: [v] for k, v in self.set.items()}, **self.product, **self.zip}
+        for i, entry in enumerate(self.exclude):
+            if not entry:
+                raise ValueError(f"exclude.{i}: is empty; give the parameter values whose "
+                                 "combinations to leave out, e.g. {cull: cull, method: nearclip}")
+            for key, value in entry.items():
+                if key not in self.product and key not in self.zip:
+                    where = "is in set, so every combination has it" if key in self.set else \
+                        "is not a parameter of this grid's product or zip"
+                    raise ValueError(f"exclude.{i}.{key}: {where}; exclude leaves out "
+                                     "combinations of product and zip values")
+                if not any(_same(value, v) for v in given[key]):
+                    raise ValueError(f"exclude.{i}.{key}: {value!r} is not among its values "
+                                     f"({', '.join(map(repr, given[key]))})")
+
     def count(self) -> int:
-        """How many combinations :meth:`combinations` gives, without making them (a product
-        of long lists can stand for billions)."""
+        """How many combinations :meth:`combinations` gives before exclusions, at most, without
+        making them (a product of long lists can stand for billions)."""
         rows = len(next(iter(self.zip.values()))) if self.zip else 1
         return math.prod(len(values) for values in self.product.values()) * rows
 
@@ -73,7 +95,14 @@ class Grid(Strict):
                  for values in itertools.product(*(self.product[n] for n in names))]
         rows = ([dict(zip(self.zip, values)) for values in zip(*self.zip.values())]
                 if self.zip else [{}])
-        return [{**self.set, **p, **z} for p in prods for z in rows]
+        combos = [{**self.set, **p, **z} for p in prods for z in rows]
+        return [c for c in combos if not any(
+            all(k in c and _same(c[k], v) for k, v in entry.items()) for entry in self.exclude)]
+
+
+def _same(a, b) -> bool:
+    """Equal as YAML values: 4 and 4.0 alike, true and 1 not."""
+    return a == b and isinstance(a, bool) == isinstance(b, bool)
 
 
 class ReferenceSettings(Strict):

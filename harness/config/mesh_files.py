@@ -22,6 +22,7 @@ from .limits import MAX_COORDINATE
 from .mesh_formats import (gltf_json, check_numbers, check_vertices, declared_triangles,
                            mesh_format, read_parts)
 from .mesh_obj import SHORT_FACES
+from .mesh_packages import package_file
 from .yaml_source import check_regular_file, key_error
 
 
@@ -30,9 +31,9 @@ class MeshSource(Protocol):
     """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
     this module stays below the schema, with no import of it)."""
 
-    path: str  # relative to the scene file (or to the package's folder), or absolute
+    path: str  # relative to the scene file (or inside the package), or absolute
     up: str  # the file's up axis
-    package: str | None  # an installed top-level package the path is inside
+    package: str | None  # an installed top-level package or distribution the file is of
 
 MESH_CACHE_VERSION = 3  # bump when what is cached (or how it is built) changes; 3: checksums
 # y-up assets (most of them) turned so that their +y is the scene's +z
@@ -84,23 +85,13 @@ def skipped_note(skipped: dict[str, int]) -> str:
 
 
 def resolve_mesh_path(scene_path: Path, obj: MeshSource) -> Path:
-    """The file: relative to the scene file's folder, or to the folder of the installed package
-    ``obj.package`` (found by importlib without importing it); a ValueError when no such
-    package is installed."""
+    """The file: relative to the scene file's folder, or a file of the installed package or
+    distribution ``obj.package`` (:func:`.mesh_packages.package_file`: a ValueError when
+    neither is installed, a FileNotFoundError when it has no such file)."""
     p = Path(obj.path)
     if obj.package is not None:
-        return package_folder(obj.package) / p
+        return package_file(obj.package, obj.path)
     return p if p.is_absolute() else Path(scene_path).parent / p
-
-
-def package_folder(package: str) -> Path:
-    import importlib.util
-
-    spec = importlib.util.find_spec(package)  # a top-level name: nothing is imported
-    if spec is None or not spec.submodule_search_locations:
-        raise ValueError(f"no installed package {package!r} (the corpus scenes' packages are "
-                         "dev dependencies: pip install -e '.[dev]')")
-    return Path(list(spec.submodule_search_locations)[0])
 
 
 _loaded: dict[str, MeshParts] = {}  # by cache key: the scene check and the build share one
@@ -291,6 +282,8 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
     loc = ("scenes", scene_name, "objects", index, "path")
     try:
         mesh_path = resolve_mesh_path(path, obj)
+    except FileNotFoundError as e:  # the package is there, the file is not
+        raise key_error(path, node, loc, str(e)) from None
     except ValueError as e:
         raise key_error(path, node, loc[:-1] + ("package",), str(e)) from None
     try:
@@ -304,7 +297,7 @@ def check_mesh(path: Path, node, scene_name: str, index: int, obj: MeshSource,
         fmt = mesh_format(mesh_path)
         declared = declared_triangles(mesh_path, fmt, stop_after=triangle_budget)
         if triangle_budget is not None and declared > triangle_budget:
-            least = " at least" if fmt in ("obj", "ply", "off") else ""  # polygons fanned
+            least = " at least" if fmt in ("obj", "ply", "off", "dae") else ""  # polygons fanned
             raise key_error(path, node, loc,
                             f"{mesh_path} declares{least} {declared:,} triangles, more than the "
                             f"budget of {triangle_budget:,} (an experiment may raise it with "

@@ -20,9 +20,12 @@ import numpy as np
 from .mesh_obj import finite, obj_triangles, read_obj
 
 # every format trimesh reads that carries triangles (trimesh.exchange.load.mesh_formats()
-# less xyz, a point cloud)
+# less xyz, a point cloud); COLLADA (.dae) through pycollada, a dependency
 FORMATS = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".glb": "glb", ".gltf": "gltf",
-           ".off": "off"}
+           ".off": "off", ".dae": "dae"}
+# COLLADA's primitives, whose count attribute counts polygons (strips and fans: at least one
+# triangle each)
+COLLADA_PRIMITIVES = {"triangles", "polylist", "polygons", "tristrips", "trifans"}
 STL_HEADER, STL_RECORD = 84, 50  # binary STL: 80 bytes, a uint32 count, 50 bytes a triangle
 HEADER_MAX = 65536  # a PLY's or OFF's header is read from the file's first 64 KiB
 GLTF_TRIANGLES = 4  # a primitive's mode: 4 is triangles (the default), others points or lines
@@ -44,6 +47,8 @@ def declared_triangles(path, fmt: str, stop_after: int | None = None) -> int:
     file's size. A ValueError for a header that contradicts the file."""
     if fmt == "obj":
         return obj_triangles(path, stop_after)
+    if fmt == "dae":
+        return _collada_triangles(path)
     with open(path, "rb") as f:
         size = os.fstat(f.fileno()).st_size
         head = f.read(HEADER_MAX)
@@ -144,6 +149,39 @@ def _gltf_triangles(gltf: dict) -> int:
             from None
     if total == 0:
         raise ValueError("glTF with no triangles (no primitive of mode 4 with vertices)")
+    return total
+
+
+def _collada_triangles(path) -> int:
+    """At least the triangles of the geometries a COLLADA file's nodes place (each geometry
+    once when no node does): its primitives' ``count`` attributes, read by a streaming XML
+    parse that keeps no element it has passed."""
+    import xml.etree.ElementTree as ET
+
+    per_geometry: dict[str | None, int] = {}
+    placed: list[str] = []
+    geometry = None
+    try:
+        for event, element in ET.iterparse(path, events=("start", "end")):
+            tag = element.tag.rpartition("}")[2]
+            if event == "end":
+                geometry = None if tag == "geometry" else geometry
+                element.clear()
+            elif tag == "geometry":
+                geometry = element.get("id")
+                per_geometry.setdefault(geometry, 0)
+            elif tag in COLLADA_PRIMITIVES and geometry in per_geometry:
+                per_geometry[geometry] += int(element.get("count", "0"))
+            elif tag == "instance_geometry":
+                placed.append(element.get("url", "").removeprefix("#"))
+    except ET.ParseError as e:
+        raise ValueError(f"not a COLLADA file (XML: {e})") from None
+    except ValueError:
+        raise ValueError("a COLLADA primitive's count is not a whole number") from None
+    total = (sum(per_geometry.get(name, 0) for name in placed) if placed
+             else sum(per_geometry.values()))
+    if total == 0:
+        raise ValueError("COLLADA with no triangles (no placed geometry with a primitive)")
     return total
 
 

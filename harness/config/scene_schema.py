@@ -179,15 +179,19 @@ class Lathe(Placed):
 
 
 class MeshFile(Placed):
-    """A mesh file: ``path`` relative to the scene file, or with ``package:`` (an installed
-    top-level Python package's import name) relative to that package's folder, so a scene may
-    use a file a package ships (``{shape: mesh, package: pymeshlab, path:
-    tests/sample_meshes/airplane.obj}``); the package is found, never imported."""
+    """A mesh file: ``path`` relative to the scene file, or with ``package:`` a file an
+    installed package ships: relative to the folder of the top-level import package of that
+    name (``{shape: mesh, package: pymeshlab, path: tests/sample_meshes/airplane.obj}``), else
+    among the files the distribution of that name installed, its data files outside the
+    import packages included (``{package: kivy-examples, path:
+    share/kivy-examples/3Drendering/monkey.obj}``: :mod:`.mesh_packages`); nothing is
+    imported."""
 
     shape: Literal["mesh"]
-    path: str  # .obj, .ply, .stl, .off, .glb or .gltf
+    path: str  # .obj, .ply, .stl, .off, .glb, .gltf or .dae
     up: Literal["y", "z"] = "z"  # the file's up axis; a y-up file is turned so +y is +z
-    package: Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")] | None = None
+    # an import package's name or a distribution's (PEP 508: letters, digits, . _ -)
+    package: Annotated[str, Field(pattern=r"^[A-Za-z0-9]([A-Za-z0-9._-]*[A-Za-z0-9])?$")] | None = None
 
     @model_validator(mode="after")
     def _inside_the_package(self):
@@ -195,7 +199,7 @@ class MeshFile(Placed):
             p = Path(self.path)
             if p.is_absolute() or ".." in p.parts:
                 raise ValueError(f"path {self.path!r}: with package: it must be relative to the "
-                                 "package's folder, without '..'")
+                                 "package's folder (or its installed files), without '..'")
         return self
 
     @property
@@ -346,10 +350,13 @@ def _within_budget(path: Path, node, loc: tuple, total: int, budget: int | None)
                         "raise it with triangle_budget:)")
 
 
-def load_scenes(path: str | Path, *,
-                triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET) -> dict[str, Scene]:
+def load_scenes(path: str | Path, *, triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET,
+                only=None) -> dict[str, Scene]:
     """Load and validate a scene file; mesh paths are resolved against the file's folder.
-    Each scene's triangles (all copies) must fit ``triangle_budget`` (None: no budget)."""
+    Each scene's triangles (all copies) must fit ``triangle_budget`` (None: no budget).
+    ``only``: the names of the scenes whose mesh files are loaded and counted (None: every
+    scene); the others are validated as written, so one bad mesh path blocks only its own
+    scene (:func:`check_scenes` checks them later, when they are chosen)."""
     path = Path(path)
     data, node = read_yaml(path)
     if isinstance(data, dict) and isinstance(data.get("scenes"), dict):
@@ -362,7 +369,21 @@ def load_scenes(path: str | Path, *,
         scene_file = SceneFile.model_validate(data)
     except ValidationError as e:
         raise validation_error(path, e, node, model=SceneFile) from None
-    for name, scene in scene_file.scenes.items():
+    check_scenes(path, scene_file.scenes, scene_file.scenes if only is None else only,
+                 triangle_budget, node)
+    return scene_file.scenes
+
+
+def check_scenes(path: str | Path, scenes: dict[str, Scene], names,
+                 triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET, node=None) -> None:
+    """The scenes ``names`` of the file ``path`` (loaded as ``scenes``): each mesh file usable,
+    and each scene's triangles, all copies, within ``triangle_budget``; a ConfigError naming
+    the key otherwise."""
+    path = Path(path)
+    if node is None:
+        node = read_yaml(path)[1]
+    for name in names:
+        scene = scenes[name]
         total = scene.family.triangles if scene.family else 0
         _within_budget(path, node, ("scenes", name, "family", "triangles"), total,
                        triangle_budget)
@@ -373,4 +394,3 @@ def load_scenes(path: str | Path, *,
                    if isinstance(obj, MeshFile) else obj.triangles())
             total += one * copies
         _within_budget(path, node, ("scenes", name, "objects"), total, triangle_budget)
-    return scene_file.scenes

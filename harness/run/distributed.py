@@ -121,7 +121,7 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
-        raise ConfigError("--executor dask needs Dask: pip install 'shadowbench[dask]'") from None
+        raise ConfigError("--executor dask needs Dask: pip install 'hard-shadow-bench[dask]'") from None
 
     cluster = client = None
     try:

@@ -16,6 +16,7 @@ from .. import results
 from ..gl import measure as pass_measure
 from ..gl.measure import default_timer
 from ..machine.timing import CONFIDENCE, NOISY_CONTENTION
+from ..technique import registry
 from .measure import BATCH_BYTES, BATCH_RESIDENT, BATCH_RUNS
 from .plan import Plan
 
@@ -140,7 +141,7 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
     complete = session["status"] == "complete"
     counters_missing = pass_measure.pipeline_statistics_missing()
     manifest = {
-        "shadowbench": _version("shadowbench"),
+        "shadowbench": _version(registry.own_distribution()),
         "versions": {name: _version(dist) for name, dist in (
             ("pyrender", "scikit-robot-pyrender"), ("PyOpenGL", "PyOpenGL"),
             ("mitsuba", "mitsuba"), ("drjit", "drjit"), ("numpy", "numpy"),

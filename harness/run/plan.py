@@ -103,6 +103,8 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
             msg = f"{technique} has no parameter {name!r}; allowed: {allowed}"
         else:
             msg = f"{technique}.{name}: {problem}"
+            if not first["loc"] and where != "--set":  # a check of a combination of values
+                msg += "; leave such combinations out of a grid with exclude:"
         raise cfg.ConfigError(f"{where}: {msg}") from None
     for name, value in params.model_dump().items():  # "1e999" and .inf validate as float inf
         if isinstance(value, float) and not math.isfinite(value):
@@ -131,7 +133,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
         exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
         node, exp_path, exp_text = None, Path("(command line)"), ""
     exp = cfg.with_timing(exp, **(timing or {}))
-    declared = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget)
+    # every scene validated as written; the meshes of the chosen ones only, once chosen
+    declared = cfg.load_scenes(scene_file, triangle_budget=exp.triangle_budget, only=())
     all_scenes, stands_for = sized_scenes(declared, exp, exp_path, node)
 
     wanted = list(declared) if exp.scenes == "all" else list(exp.scenes)
@@ -155,6 +158,9 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
             raise cfg.ConfigError(f"--scenes: {', '.join(outside)} not in {exp_path} (its scenes: "
                                   f"{', '.join(wanted_scenes)})")
         wanted_scenes = list(dict.fromkeys(scenes))
+    cfg.check_scenes(scene_file, declared, [name for name, sized in stands_for.items()
+                                            if set(sized) & set(wanted_scenes)],
+                     exp.triangle_budget)
 
     grids: dict[str, list[cfg.Grid]] = {}
     chosen = ({name: cfg.Grid() for name in registered} if exp.techniques == "all"
@@ -283,7 +289,7 @@ def _notes(included: list[str], broken: dict[str, str]) -> list[str]:
     sweep of every technique takes in every installed one), on one line, and the broken entry
     points it leaves out, each with the reason."""
     plugins = [f"{name} ({registry.distribution_of(name)})" for name in included
-               if registry.distribution_of(name) != registry.OWN_DISTRIBUTION]
+               if registry.is_plugin(name)]
     notes = [f"installed plugins in this plan: {', '.join(plugins)}"] if plugins else []
     return notes + [f"left out, broken: {name}: {why}" for name, why in broken.items()]
 

@@ -317,11 +317,12 @@ def load_scene(name: str, scene_file: str | Path = "scenes.yaml") -> BuiltScene:
     """The scene ``name`` of ``scene_file``; ``family@size`` (``architecture@1e6``) is a family
     scene at another size, as an experiment's ``triangles`` makes it (the same key)."""
     base, at, size = name.partition("@")
-    scenes = cfg.load_scenes(scene_file)
+    scenes = cfg.load_scenes(scene_file, only=())  # the meshes of this scene alone, below
     if base not in scenes:
         raise cfg.ConfigError(
             f"{scene_file}: no scene named {base!r}; it has {', '.join(sorted(scenes))}"
         )
+    cfg.check_scenes(scene_file, scenes, [base])
     scene = scenes[base]
     if at:
         if scene.family is None:

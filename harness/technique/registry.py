@@ -22,7 +22,9 @@ from .code_version import GROUP
 from ..config import ConfigError
 from . import Technique, check_declined_lights, check_quality_knobs, declares_baseline
 
-OWN_DISTRIBUTION = "shadowbench"  # the built-ins' (pyproject.toml); any other is a plugin
+# the project's distribution (pyproject.toml's name; `shadowbench` on the package index is
+# another project's): the built-ins'. Any other distribution is a plugin.
+DISTRIBUTION = "hard-shadow-bench"
 
 
 class RegistryError(ConfigError):
@@ -84,7 +86,12 @@ def techniques() -> dict[str, type[Technique]]:
     return dict(_discover()[0])
 
 
-techniques.cache_clear = _discover.cache_clear  # the tests' way to discover again
+def _discover_again() -> None:
+    _discover.cache_clear()
+    own_distribution.cache_clear()
+
+
+techniques.cache_clear = _discover_again  # the tests' way to discover again
 
 
 def broken() -> dict[str, str]:
@@ -94,6 +101,23 @@ def broken() -> dict[str, str]:
 
 def distribution_of(name: str) -> str:
     return _discover()[2].get(name, "an unknown distribution")
+
+
+@lru_cache(maxsize=1)
+def own_distribution() -> str:
+    """The installed name of the distribution that holds the built-ins: the one whose entry
+    points in the group load from this project's ``techniques`` package (an environment
+    installed before the project took its name holds it as ``shadowbench``), else
+    :data:`DISTRIBUTION` (a checkout on the path, not installed)."""
+    for ep in entry_points(group=GROUP):
+        if ep.value.split(".", 1)[0] == "techniques":
+            return distribution(ep)
+    return DISTRIBUTION
+
+
+def is_plugin(name: str) -> bool:
+    """Whether technique ``name`` comes from another distribution than the built-ins'."""
+    return distribution_of(name) != own_distribution()
 
 
 def baseline(among=None) -> str | None:

@@ -2,6 +2,8 @@
 
 import ast
 import inspect
+import re
+import tomllib
 from importlib.metadata import EntryPoint
 from pathlib import Path
 
@@ -21,6 +23,24 @@ def test_builtins_register_through_the_entry_point_group():
     names = {ep.name for ep in entry_points(group=registry.GROUP)}
     assert {"sm", "pcf"} <= names
     assert set(registry.techniques()) == names
+
+
+def test_the_distribution_has_a_name_of_its_own_and_plugins_depend_on_it():
+    """``shadowbench`` on PyPI (0.2.1) is another project: a plugin depending on it would
+    install that one. The project's distribution is registry.DISTRIBUTION; the template and
+    the test plugins depend on it; the built-ins' installed distribution (whatever name this
+    environment installed it under) is no plugin. Catches the name left ``shadowbench``."""
+    root = Path(__file__).resolve().parents[2]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    assert project["name"] == registry.DISTRIBUTION == "hard-shadow-bench"
+    assert project["scripts"] == {"shadowbench": "harness.cli:main"}
+    assert f"{registry.DISTRIBUTION}[dask]" in project["optional-dependencies"]["dev"]
+    plugins = [root / "examples" / "plugin", *(root / "tests" / "data" / "plugins").iterdir()]
+    for plugin in plugins:
+        needs = tomllib.loads((plugin / "pyproject.toml").read_text())["project"]["dependencies"]
+        assert needs == [registry.DISTRIBUTION], plugin
+    assert registry.own_distribution() == registry.distribution_of("sm")
+    assert not registry.is_plugin("sm") and not registry.is_plugin("ptsv")
 
 
 def test_duplicate_names_are_an_error(monkeypatch):
@@ -55,8 +75,9 @@ def test_one_baseline_at_most(monkeypatch):
     declaring itself one is an error naming both. Catches the baseline chosen silently."""
     assert registry.baseline() == "sm"
     monkeypatch.setattr(registry.get("pcf"), "baseline", True)
+    own = re.escape(registry.own_distribution())
     with pytest.raises(registry.RegistryError,
-                       match=r"pcf \(distribution shadowbench\), sm \(distribution shadowbench\) "
+                       match=rf"pcf \(distribution {own}\), sm \(distribution {own}\) "
                              "each declare baseline = True in their class; one baseline at most"):
         registry.baseline()
 

@@ -3,7 +3,8 @@ are the default outside the repository; ``list --scene NAME`` prints each object
 placed: scale, then rotate about x, then y, then z, then translate, never recentred."""
 
 
-from harness.cli import SHIPPED_SCENE_FILE, main
+from harness.cli import main
+from harness.config import shipped
 from helpers import ROOT
 
 
@@ -37,8 +38,8 @@ def test_the_shipped_scenes_are_the_default_outside_the_repository(tmp_path, mon
     a missing explicit file listed as "no scene file" with exit 0."""
     monkeypatch.chdir(tmp_path)
     listed = lines(capsys, "list")
-    assert f"scenes (from {SHIPPED_SCENE_FILE}):" in listed
-    assert SHIPPED_SCENE_FILE == ROOT / "scenes.yaml"
+    assert f"scenes (from {ROOT / 'scenes.yaml'}):" in listed
+    assert shipped.scene_file() == ROOT / "scenes.yaml"
     planned = lines(capsys, "plan", "--scenes", "box_plane", "--techniques", "sm")
     assert planned[:2] == ["1 runs (duplicate points merged) in 1 scenes, cost policy dynamic:",
                            "  box_plane 512x512: 1 runs: sm 1"]

@@ -65,7 +65,28 @@ BAD = [
     ("techniques: {mdsm: {curve: {n: [1, 4]}}}\n",
      "techniques.mdsm.curve.n: mdsm.(parameters): select=minmax allows n in [1, 2, 3]"),
     ("techniques: {sm: {curve: true, product: {res: [256]}}}\n",
-     "techniques.sm.curve: goes with set only, not with product or zip"),
+     "techniques.sm.curve: goes with set only, not with product, zip or exclude"),
+    # exclude: combinations that do not go together, left out; a bad exclusion is named
+    ("techniques: {sv: {product: {cull: [none, cull], method: [zfail, nearclip]}}}\n",
+     "techniques.sv: sv.cull: cull needs method zpass or zfail (nearclip draws each volume's "
+     "near-plane clip polygon apart from it); leave such combinations out of a grid with "
+     "exclude:"),
+    ("techniques:\n  sv:\n    product: {cull: [none, cull], method: [zfail, nearclip]}\n"
+     "    exclude: [{cull: cull, method: nearclp}]\n",
+     "exp.yaml:4: techniques.sv.exclude.0.method: 'nearclp' is not among its values ('zfail', "
+     "'nearclip')"),
+    ("techniques:\n  sv:\n    product: {cull: [none, cull], method: [zfail, nearclip]}\n"
+     "    exclude: [{cul: cull}]\n",
+     "techniques.sv.exclude.0.cul: is not a parameter of this grid's product or zip"),
+    ("techniques:\n  sv:\n    product: {cull: [none, cull]}\n    set: {method: zfail}\n"
+     "    exclude: [{method: zfail}]\n",
+     "techniques.sv.exclude.0.method: is in set, so every combination has it"),
+    ("techniques: {sv: {product: {cull: [none, cull]}, exclude: [{}]}}\n",
+     "techniques.sv.exclude.0: is empty; give the parameter values"),
+    ("techniques: {sv: {product: {cull: [none, cull]}, exclude: {cull: cull}}}\n",
+     "techniques.sv.exclude: Input should be a valid list"),
+    ("techniques: {sv: {curve: true, exclude: [{method: zpass}]}}\n",
+     "techniques.sv.curve: goes with set only, not with product, zip or exclude"),
     # per-scene settings: the scene, the technique and the grid are checked like the rest
     ("techniques: curves\nper_scene:\n  nowhere: {frames: 3}\n",
      "exp.yaml:3: per_scene.nowhere: no scene 'nowhere' in the scene file"),
@@ -92,6 +113,33 @@ def test_bad_experiment_exits_2_with_one_line_and_writes_nothing(tmp_path, capsy
     assert err.count("\n") == 1 and err.startswith(f"shadowbench: {path}"), err
     assert message in err, err
     assert not out.exists()
+
+
+def test_exclude_leaves_out_the_combinations_that_do_not_go_together(tmp_path):
+    """sv's ``cull: cull`` and ``cc`` need zpass or zfail: a product of cull and method with
+    the nearclip pairs excluded plans the other 7 of its 9 combinations (a zip row goes too
+    when it matches). Broken version caught (the old behaviour): no way to leave them out, so
+    the whole file was refused (``cull: cull needs method zpass or zfail``)."""
+    path = _write(tmp_path, """\
+scenes: [box_plane]
+resolutions: [[64, 64]]
+techniques:
+  sv:
+    product: {cull: [none, cull, cc], method: [zpass, zfail, nearclip]}
+    exclude: [{cull: cull, method: nearclip}, {cull: cc, method: nearclip}]
+  pcf:
+    zip: {k: [4, 9, 16], res: [256, 512, 1024]}
+    exclude: [{k: 9}]
+""")
+    plan = runner.plan_runs(experiment_path=str(path), scene_file=str(SCENE_FILE), scenes=None,
+                            techniques=None, overrides={})
+    sv = sorted((r.params["cull"], r.params["method"]) for r in plan.runs if r.technique == "sv")
+    assert sv == sorted([("none", "zpass"), ("none", "zfail"), ("none", "nearclip"),
+                         ("cull", "zpass"), ("cull", "zfail"), ("cc", "zpass"), ("cc", "zfail")])
+    pcf = sorted((r.params["k"], r.params["res"]) for r in plan.runs if r.technique == "pcf")
+    assert pcf == [(4, 256), (16, 1024)]
+    grid = config.Grid(product={"res": [512, 512.0]}, exclude=[{"res": 512}])
+    assert grid.combinations() == [] and grid.count() == 2  # count: before exclusions
 
 
 def test_scenes_outside_the_experiment_are_an_error(tmp_path, capsys):

@@ -52,10 +52,13 @@ def test_the_loader_reads_trimeshs_triangles_less_the_zero_area_ones(obj):
 
 @pytest.mark.parametrize("mesh, key, needle", [
     ({"package": "no_such_package_x", "path": "m.obj"}, "scenes.s.objects.1.package",
-     "no installed package 'no_such_package_x'"),
+     "no installed package or distribution 'no_such_package_x'"),
     ({"package": "pymeshlab", "path": "../pymeshlab/tests/sample_meshes/cube.obj"},
-     "scenes.s.objects.1", "must be relative to the package's folder, without '..'"),
-    ({"package": "pymeshlab.tests", "path": "sample_meshes/cube.obj"},
+     "scenes.s.objects.1", "must be relative to the package's folder (or its installed files), "
+                           "without '..'"),
+    ({"package": "pymeshlab.tests", "path": "sample_meshes/cube.obj"},  # never imported
+     "scenes.s.objects.1.package", "no installed package or distribution 'pymeshlab.tests'"),
+    ({"package": "pymeshlab/tests", "path": "sample_meshes/cube.obj"},
      "scenes.s.objects.1.package", "should match pattern"),
     ({"package": "pymeshlab", "path": "tests/sample_meshes/nothing.obj"},
      "scenes.s.objects.1.path", "no such file"),
@@ -79,3 +82,61 @@ def test_a_package_mesh_is_read_from_the_package_folder(tmp_path):
     installed, = [f for f in files("pymeshlab") if str(f).endswith("sample_meshes/cube.obj")]
     assert path.resolve() == Path(installed.locate()).resolve()
     assert config.mesh_parts(path).triangles == 12
+
+
+TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def fake_distribution(root: Path) -> Path:
+    """An installed distribution ``meshdata-examples`` with no import package, whose one file
+    is a data file outside site-packages (as kivy-examples installs monkey.obj under
+    share/kivy-examples/), written as pip writes it: the RECORD lists it as ../../share/...;
+    the site folder to put on sys.path."""
+    site = root / "lib" / "site"
+    info = site / "meshdata_examples-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: meshdata-examples\nVersion: 1.0\n")
+    (info / "RECORD").write_text("../../share/meshdata-examples/models/tri.obj,,\n"
+                                 "meshdata_examples-1.0.dist-info/METADATA,,\n"
+                                 "meshdata_examples-1.0.dist-info/RECORD,,\n")
+    data = root / "share" / "meshdata-examples" / "models"
+    data.mkdir(parents=True)
+    (data / "tri.obj").write_text(TRIANGLE)
+    return site
+
+
+@pytest.mark.parametrize("path", ["share/meshdata-examples/models/tri.obj", "models/tri.obj"])
+def test_a_distributions_data_file_is_found_by_package(path, tmp_path, monkeypatch):
+    """``package:`` names a distribution whose file lies outside any import package (a data file
+    under share/), by its installed path or a unique tail of it. Broken version caught (the
+    old behaviour): only an import package's folder searched, and a distribution's name
+    (with '-') refused by the key's pattern."""
+    monkeypatch.syspath_prepend(str(fake_distribution(tmp_path / "env")))
+    scene_file = write_scenes(tmp_path, {"s": scene_with(objects__1={
+        "shape": "mesh", "package": "meshdata-examples", "path": path})})
+    obj = config.load_scenes(scene_file)["s"].objects[1]
+    found = config.resolve_mesh_path(scene_file, obj)
+    assert found == (tmp_path / "env" / "share" / "meshdata-examples" / "models" / "tri.obj")
+    assert config.mesh_parts(found).triangles == 1
+
+
+def test_a_distribution_without_the_file_and_a_missing_package_say_what_to_do(
+        tmp_path, monkeypatch, capsys):
+    """A distribution that is installed without the file: one line at ``path`` naming it; a
+    package installed nowhere: one line at ``package`` saying how to install that name (the
+    old advice, ``pip install -e '.[dev]'``, installs this project's extras, not a user's
+    package)."""
+    monkeypatch.syspath_prepend(str(fake_distribution(tmp_path / "env")))
+    for package, path, key, needles in [
+            ("meshdata-examples", "models/other.obj", "scenes.s.objects.1.path",
+             ["no file models/other.obj among the files distribution meshdata-examples "
+              "installed"]),
+            ("my_meshes", "m.obj", "scenes.s.objects.1.package",
+             ["no installed package or distribution 'my_meshes'",
+              "-m pip install my_meshes"])]:
+        scene_file = write_scenes(tmp_path, {"s": scene_with(objects__1={
+            "shape": "mesh", "package": package, "path": path})})
+        code, err = run_cli(sweep(scene_file, tmp_path / "out"), capsys)
+        assert_one_line(code, err, 2, key, *needles)
+        assert ".[dev]" not in err[0]
+        assert not (tmp_path / "out").exists()

@@ -290,3 +290,75 @@ def test_mesh_files_that_are_not_meshes(make, needle, tmp_path, capsys):
     code, err = run_cli(sweep(scene_file, tmp_path / "out"), capsys)
     assert_one_line(code, err, 2, "scenes.s.objects.1.path", needle)
     assert "charset_normalizer" not in err[0]
+
+
+def test_a_bad_mesh_blocks_only_its_own_scene(tmp_path, capsys):
+    """A scene file whose scene ``bad`` names a mesh that does not exist: ``--scenes good``,
+    an experiment of ``good`` and ``load_scene("good")`` work; choosing ``bad`` (or every
+    scene) is one line naming its path, exit 2. Broken version caught (the old behaviour):
+    every scene's meshes checked at load, so ``--scenes good`` exited 2 on bad's path."""
+    from harness.scene import load_scene
+
+    (tmp_path / "m.obj").write_text("v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n")
+    scene_file = write_scenes(tmp_path, {
+        "good": scene_with(objects__1={"shape": "mesh", "path": "m.obj"}),
+        "bad": scene_with(objects__1={"shape": "mesh", "path": "missing.obj"})})
+    code, err = run_cli(["plan", "--scene-file", scene_file, "--scenes", "good",
+                         "--techniques", "sm"], capsys)
+    assert code == 0 and err == [], err
+    experiment = tmp_path / "good.yaml"
+    experiment.write_text("scenes: [good]\ntechniques: {sm: {}}\n")
+    code, err = run_cli(["plan", experiment, "--scene-file", scene_file], capsys)
+    assert code == 0 and err == [], err
+    assert load_scene("good", scene_file).triangles.shape[0] == 3  # plane 2 + the mesh's 1
+    for args in (["--scenes", "bad"], []):
+        code, err = run_cli(sweep(scene_file, tmp_path / "out", *args), capsys)
+        assert_one_line(code, err, 2, f"{scene_file}:", "scenes.bad.objects.1.path",
+                        "no such file")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(config.ConfigError, match="scenes.bad.objects.1.path"):
+        load_scene("bad", scene_file)
+
+
+COLLADA = """<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><up_axis>Z_UP</up_axis></asset>
+  <library_geometries><geometry id="quad"><mesh>
+    <source id="p"><float_array id="pa" count="12">0 0 0 1 0 0 1 1 0 0 1 0</float_array>
+      <technique_common><accessor source="#pa" count="4" stride="3"><param name="X"
+        type="float"/><param name="Y" type="float"/><param name="Z" type="float"/></accessor>
+      </technique_common></source>
+    <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+    <triangles count="2"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2 0 2 3</p>
+    </triangles></mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="s">
+    <node id="raised"><translate>0 0 2</translate><instance_geometry url="#quad"/></node>
+    <node id="ground"><instance_geometry url="#quad"/></node>
+  </visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#s"/></scene>
+</COLLADA>
+"""
+
+
+def test_a_collada_file_loads_each_placed_node_as_a_part(tmp_path):
+    """A .dae (COLLADA, through trimesh and pycollada) as the docs promise of every format
+    trimesh reads: one quad placed by two nodes, one raised by its transform. Broken version
+    caught (the old behaviour): ``unknown mesh format '.dae'``."""
+    (tmp_path / "quads.dae").write_text(COLLADA)
+    scene_file = with_mesh(tmp_path, "quads.dae")
+    assert config.load_scenes(scene_file, triangle_budget=1000)["s"]
+    parts = config.mesh_parts(tmp_path / "quads.dae")
+    assert parts.triangles == 4 and len(parts.names) == 2
+    heights = sorted(float(v[:, 2].max()) for v in parts.vertices)
+    assert heights == [0.0, 2.0]
+
+
+def test_a_collada_file_over_the_budget_is_refused_from_its_counts(tmp_path, capsys):
+    """Its ``<triangles count=...>`` and ``<instance_geometry>`` are read before the file is
+    loaded: a quad of 2 triangles placed twice, 4, against a budget of 3 (an experiment's
+    triangle_budget) is refused."""
+    (tmp_path / "quads.dae").write_text(COLLADA)
+    scene_file = with_mesh(tmp_path, "quads.dae")
+    with pytest.raises(config.ConfigError, match=r"quads.dae declares at least 4 triangles, "
+                                                 r"more than the budget of 3"):
+        config.load_scenes(scene_file, triangle_budget=3)
