@@ -326,7 +326,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("before")
     q.add_argument("after")
     q.add_argument("--factor", type=float, default=1.1,
-                   help="time is worse beyond this ratio (and beyond its interval; default 1.1)")
+                   help="time is worse beyond this ratio, with each median outside the other "
+                        "run's interval and neither run noisy (else undecided; default 1.1)")
     q.add_argument("--tolerance", type=float, default=0.05,
                    help="an error metric is worse when it grew by more than this fraction "
                         "(default 0.05)")
