@@ -11,15 +11,13 @@ from __future__ import annotations
 
 import argparse
 import errno
-import logging
 import os
 import sys
 import time
-import warnings
 from pathlib import Path
 
-from ..machine import interrupt
 from ..config import ConfigError, shipped
+from ..machine import interrupt, warnings_log
 from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
 
 DEFAULT_SCENE_FILE = "scenes.yaml"
@@ -328,7 +326,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("before")
     q.add_argument("after")
     q.add_argument("--factor", type=float, default=1.1,
-                   help="time is worse beyond this ratio (and beyond its interval; default 1.1)")
+                   help="time is worse beyond this ratio, with each median outside the other "
+                        "run's interval and neither run noisy (else undecided; default 1.1)")
     q.add_argument("--tolerance", type=float, default=0.05,
                    help="an error metric is worse when it grew by more than this fraction "
                         "(default 0.05)")
@@ -347,10 +346,9 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
             if getattr(args, "platform", None):
                 os.environ["SHADOWBENCH_GL"] = os.environ["PYOPENGL_PLATFORM"] = args.platform
-            with warnings.catch_warnings(record=True) as caught, _LogRecords() as logged:
-                warnings.simplefilter("default")
+            with warnings_log.Caught() as caught:
                 code = args.func(args)
-            _log_warnings(args, [_warning_line(w) for w in caught] + logged.lines)
+            _log_warnings(args, caught.lines)
             return code
         except KeyboardInterrupt:
             interrupt.announce()
@@ -373,45 +371,13 @@ def main(argv: list[str] | None = None) -> int:
             return code
 
 
-WARNINGS_LOG = "warnings.log"
-
-
-class _LogRecords(logging.Handler):
-    """Warnings that libraries log (trimesh logs rather than warns) kept as lines, in place of
-    logging's last resort, which prints them on stderr."""
-
-    def __init__(self):
-        super().__init__(logging.WARNING)
-        self.lines: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.lines.append(f"{record.levelname} {record.name}: "
-                          f"{' '.join(record.getMessage().split())}")
-
-    def __enter__(self):
-        logging.getLogger().addHandler(self)
-        return self
-
-    def __exit__(self, *exc):
-        logging.getLogger().removeHandler(self)
-
-
-def _warning_line(w: warnings.WarningMessage) -> str:
-    return (f"{w.category.__name__} {Path(w.filename).name}:{w.lineno}: "
-            f"{' '.join(str(w.message).split())}")
-
-
 def _log_warnings(args, lines: list[str]) -> None:
     """Libraries' warnings (trimesh, scikit-image, NumPy, Mitsuba) go to DIR/warnings.log of
     the command's folder, never onto the terminal among the progress lines and the result; a
     warning about one run's numbers is in that run's ``warnings`` column already. Without a
     folder (compare, list) they are dropped; a bad input (exit 2) logs nothing."""
     folder = getattr(args, "out", None) or getattr(args, "dir", None)
-    if not lines or folder is None or not Path(folder).is_dir():
-        return
-    stamp = time.strftime("%Y-%m-%dT%H:%M:%S")
-    with open(Path(folder) / WARNINGS_LOG, "a", encoding="utf-8") as log:
-        log.writelines(f"{stamp} {line}\n" for line in lines)
+    warnings_log.append(folder, lines)
 
 
 def _known_failure(e: Exception) -> tuple[int, str] | None:

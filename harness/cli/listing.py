@@ -6,10 +6,7 @@ Each function returns the lines; the command prints them."""
 
 from __future__ import annotations
 
-import json
-import statistics
 from collections import Counter
-from datetime import datetime
 from pathlib import Path
 
 from .. import config
@@ -210,8 +207,8 @@ def inspect_lines(path: Path, name: str) -> list[str]:
 
 def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
     """The runs of ``plan`` grouped by scene (runs of each technique), the plan's notes, and the
-    time the runs not yet in ``out`` would take, from the runs stored in ``stored`` (see
-    :func:`estimate`)."""
+    time the runs not yet in ``out`` would take, from the runs stored in ``stored``
+    (:mod:`harness.run.estimate`)."""
     from ..results import read_rows
 
     done = {r["run_id"] for r in (read_rows(out) if out is not None else [])
@@ -230,64 +227,21 @@ def plan_lines(plan, out: Path | None, stored: Path | None) -> list[str]:
     if not todo:
         lines.append(f"time: none; every run is in {out} already")
         return lines
+    from ..run import read_manifest
+    from ..run.estimate import duration, estimate
+
     rows = read_rows(stored) if stored is not None else []
-    seconds, matched = estimate(todo, rows, _wall_seconds(stored) if rows else None)
-    if not seconds:
-        lines.append("time: no estimate (no stored run like these; give --from DIR, a folder "
-                     "an earlier run of this experiment wrote)")
+    found = estimate(todo, {name: len(scene.triangles) for name, scene in plan.scenes.items()},
+                     rows, read_manifest(stored)) if rows else None
+    if found is None or not found.seconds:
+        lines.append("time: no estimate (no stored run with a time and a triangle count to price "
+                     "them from; give --from DIR, a folder an earlier run of this experiment "
+                     "wrote)")
         return lines
-    lines.append(f"time: about {_duration(seconds)} for the {len(todo)} runs to render "
-                 f"({matched} like a run stored in {stored}, the rest at those runs' median "
-                 "share), at the pace those runs took on the machine that ran them")
+    lines.append(f"time: about {duration(found.seconds)} for the {len(todo)} runs to render, at "
+                 f"the pace of the runs stored in {stored} on the machine that ran them "
+                 f"({found.stored} as stored there, {found.modelled} priced by their scene's "
+                 f"triangles and pixels" + (f": {found.how})" if found.modelled else ")"))
     return lines
 
 
-def estimate(todo, rows: list[dict], wall: float | None) -> tuple[float, int]:
-    """Seconds for the runs ``todo`` from stored rows: each stored ok run's share of the
-    folder's wall time (``wall``: its invocations' durations) is in proportion to its frame
-    work (frames x time_ms, plus setup_ms); a planned run like a stored one (same scene, size,
-    technique, parameters) takes that share, scaled by its own frame count, and any other the
-    stored runs' median share. Returns (seconds, runs matched)."""
-    def work(row) -> float | None:
-        try:
-            return int(row["frames"]) * float(row["time_ms"]) + float(row.get("setup_ms") or 0)
-        except (KeyError, ValueError):
-            return None
-
-    ok = [(r, work(r)) for r in rows if r["status"] == "ok" and work(r) is not None]
-    total = sum(w for _, w in ok)
-    if not todo or not ok or not total or not wall:
-        return 0.0, 0
-    share = {(r["scene"], r["width"], r["height"], r["technique"],
-              json.dumps(json.loads(r["params"] or "{}"), sort_keys=True)):
-             (wall * w / total, int(r.get("frames") or 1)) for r, w in ok}
-    median = statistics.median(s for s, _ in share.values())
-    seconds, matched = 0.0, 0
-    for spec in todo:
-        found = share.get((spec.scene, str(spec.width), str(spec.height), spec.technique,
-                           spec.params_json))
-        if found:
-            matched += 1
-            seconds += found[0] * spec.frames / max(found[1], 1)
-        else:
-            seconds += median
-    return seconds, matched
-
-
-def _wall_seconds(folder: Path) -> float | None:
-    """The summed durations of the invocations recorded in ``folder``'s manifest."""
-    from ..run import read_manifest
-
-    total = 0.0
-    for session in read_manifest(folder).get("invocations", []):
-        try:
-            total += (datetime.fromisoformat(session["finished"])
-                      - datetime.fromisoformat(session["started"])).total_seconds()
-        except (KeyError, TypeError, ValueError):
-            continue
-    return total or None
-
-
-def _duration(seconds: float) -> str:
-    minutes, rest = divmod(round(seconds), 60)
-    return f"{minutes} min {rest} s" if minutes else f"{rest} s"

@@ -4,6 +4,8 @@
   processes took while a run was timed (``cpu_contention``, ``noisy``).
 - ``interrupt``: Ctrl-C and SIGTERM stop a command within a second, whatever library is running;
   long loops anywhere (mesh loading, the sweep) call ``raise_if_interrupted``.
+- ``warnings_log``: library warnings caught as lines (a command's, a report worker's) and
+  appended to the folder's ``warnings.log``, never printed.
 
 Nothing here imports another part of the harness.
 """

@@ -22,7 +22,9 @@ The page's parts, one module each:
 
 Names and values from the results reach the page only through autoescaped templates
 (``render``) and arrays are read only from inside the folder (``stored``). The scene sections,
-most of the build's time (their images), are built in worker processes, one per core.
+most of the build's time (their images), are built in worker processes, one per core; what
+those warn goes to ``DIR/warnings.log`` (:mod:`harness.machine.warnings_log`), never onto the
+terminal.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 from .. import analysis
+from ..machine import warnings_log
 from ..technique import registry
 from . import images, overview, plots
 from .scale import scale_view
@@ -77,7 +80,9 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) \
             if workers > 1 else ThreadPoolExecutor(1) as pool:
         # the largest scenes first, so that no worker is left with one at the end
-        pending = {name: pool.submit(scene_part, folder.root, name, *jobs[name])
+        # a worker process catches its own warnings; a thread's are this process's
+        part = scene_part_quietly if workers > 1 else _scene_part_here
+        pending = {name: pool.submit(part, folder.root, name, *jobs[name])
                    for name in sorted(jobs, key=lambda n: -len(jobs[n][0]))}
         page = dict(
             folder=str(out_dir), meta=meta,
@@ -88,11 +93,14 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
             scale=scale_view(current, colours, baseline,
                              registry.rivals(set(current["technique"]))),
             theta=plots.theta(current, colours), papers=papers_link(folder.root))
-        scenes = []
+        scenes, caught = [], []
         for name in jobs:
-            section, notes = pending[name].result()
+            section, notes, lines = pending[name].result()
             scenes.append(section)
             folder.notes.extend(notes)
+            caught += lines
+    # what the worker processes warned: into DIR/warnings.log as the command's own warnings
+    warnings_log.append(folder.root, caught)
     return write_page(folder.root / "index.html", render(
         "index.html.j2", **page, scenes=scenes, notes=folder.notes,
         built=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")))
@@ -112,6 +120,18 @@ def scene_part(root: Path, name: str, shown, current, cheapest, budgets,
         tuple(map(int, s.split("x"))) for s in section["sizes"]])
     section["failed"] = sum(r["status"] == "error" for r in section["runs"])
     return section, folder.notes
+
+
+def scene_part_quietly(*args) -> tuple[dict, list[str], list[str]]:
+    """:func:`scene_part` in a worker process, with the warnings it raised or logged as lines
+    (a worker's own would reach the terminal: the command's catching is its process's only)."""
+    with warnings_log.Caught() as caught:
+        section, notes = scene_part(*args)
+    return section, notes, caught.lines
+
+
+def _scene_part_here(*args) -> tuple[dict, list[str], list[str]]:
+    return (*scene_part(*args), [])
 
 
 def _cpus() -> int:

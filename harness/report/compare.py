@@ -1,16 +1,22 @@
 """``shadowbench compare A B``: the runs two results folders have in common, matched by scene,
-image size, technique and parameters, and what changed from A to B in time and in error. A run
-found in one folder only is paired with one of the other's of the same scene, size and technique
-(the one that differs in the fewest parameters), and shown with its changed parameters
-(``k: 16 → 4``) beside the same columns; what stays unpaired is listed by name.
+image size, technique and parameters (by value: ``1`` and ``1.0`` are one setting), and what
+changed from A to B in time and in error. A run found in one folder only is paired with one of
+the other's of the same scene, size and technique (the one that differs in the fewest
+parameters), and shown with its changed parameters (``k: 16 → 4``); what stays unpaired is
+listed by name. A line names a run by the parameters that tell it from its technique's other
+runs there and the ones that changed, never all of them.
 
-Time is worse when B's is more than ``factor`` times A's and, where both runs carry a timing
-interval (``time_ms_ci_low``/``high``), B's interval lies wholly above A's; an error metric is
-worse when it grew by more than ``tolerance`` of A's value (and by more than rounding); a run
-that was ok in A and is not in B is worse. Like ``asv compare``: exit 0, or 1 when something
-got worse (a pair as a run in common). A folder that holds no shadowbench results of this
-version, two folders with no run in common and none to pair, or two measured under different
-cost policies (their times hold different work) are bad input (:class:`ConfigError`, exit 2)."""
+Time is worse (or better) only when B's is more than ``factor`` times A's (or less than
+1/``factor``), each run's median lies outside the other run's timing interval
+(``time_ms_ci_low``/``high``) and neither run is noisy (timed while other processes took the
+CPU); where the ratio is beyond ``factor`` but one of those fails, the time is *undecided* and
+the line says why (noisy, no interval, inside an interval). An error metric is worse when it
+grew by more than ``tolerance`` of A's value (and by more than rounding); a run that was ok in
+A and is not in B is worse. Only what got worse is starred. Like ``asv compare``: exit 0, or 1
+when something got worse (a pair as a run in common). A folder that holds no shadowbench results
+of this version, two folders with no run in common and none to pair, or two measured under
+different cost policies (their times hold different work) are bad input (:class:`ConfigError`,
+exit 2)."""
 
 from __future__ import annotations
 
@@ -31,10 +37,22 @@ ERRORS = ("edge_mae", "wrong_pct", "mae")
 ROUNDING = 1e-9  # error changes below this are equal
 
 
+def _by_value(value):
+    """A parameter's value as compared: a float that is a whole number as that integer."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+def params_key(params: dict) -> str:
+    """The parameters as one text, equal for equal settings (``k: 4`` and ``k: 4.0``)."""
+    return json.dumps({k: _by_value(v) for k, v in params.items()}, sort_keys=True)
+
+
 def load(folder: Path) -> pd.DataFrame:
     """The latest row of each run in ``folder`` (ConfigError when it holds no results)."""
     rows = read_results(folder)
-    rows = rows.assign(params_key=rows["params"].map(lambda p: json.dumps(p, sort_keys=True)))
+    rows = rows.assign(params_key=rows["params"].map(params_key))
     return rows.drop_duplicates(subset=KEY, keep="last")
 
 
@@ -64,25 +82,41 @@ class Comparison:
     def better(self) -> int:
         return sum(r["verdict"] == "better" for r in self.rows)
 
+    @property
+    def undecided(self) -> int:
+        return sum(r["verdict"] == "undecided" for r in self.rows)
+
 
 def _interval(row) -> tuple[float, float] | None:
+    """The run's timing interval; None without one, or where it has no width (a run of one
+    frame: its spread is not known)."""
     low, high = number(row.get("time_ms_ci_low")), number(row.get("time_ms_ci_high"))
-    return (low, high) if low is not None and high is not None else None
+    return (low, high) if low is not None and high is not None and high > low else None
 
 
-def time_change(a, b, factor: float) -> tuple[str, float | None]:
-    """("worse" | "better" | "same", B / A): beyond ``factor`` and, where both runs have an
-    interval, with the intervals apart."""
+def _noisy(row) -> bool:
+    return bool(number(row.get("noisy")))
+
+
+def time_change(a, b, factor: float) -> tuple[str, float | None, str]:
+    """(verdict, B / A, why): "worse" or "better" only where the ratio is beyond ``factor``,
+    each run's median lies outside the other run's interval and neither run is noisy (timed
+    while other processes took the CPU); "undecided" where the ratio is beyond ``factor`` but
+    one of those is not so (``why`` says which); else "same"."""
     ta, tb = number(a.get("time_ms")), number(b.get("time_ms"))
     if not ta or not tb:
-        return "same", None
+        return "same", None, ""
     ratio = tb / ta
+    if 1 / factor <= ratio <= factor:
+        return "same", ratio, ""
     ia, ib = _interval(a), _interval(b)
-    if ratio > factor and (ia is None or ib is None or ib[0] > ia[1]):
-        return "worse", ratio
-    if ratio < 1 / factor and (ia is None or ib is None or ib[1] < ia[0]):
-        return "better", ratio
-    return "same", ratio
+    if _noisy(a) or _noisy(b):
+        return "undecided", ratio, "noisy"
+    if ia is None or ib is None:
+        return "undecided", ratio, "no interval"
+    if not (tb < ia[0] or tb > ia[1]) or not (ta < ib[0] or ta > ib[1]):
+        return "undecided", ratio, "inside an interval"
+    return ("worse" if ratio > 1 else "better"), ratio, ""
 
 
 def error_change(a: float, b: float, tolerance: float) -> str:
@@ -115,12 +149,31 @@ def compare(before: str | Path, after: str | Path, *, factor: float = 1.1,
         raise ConfigError(f"{before} and {after}: no run in common (same scene, image size, "
                           "technique and parameters) and none to pair (same scene, image size "
                           "and technique)")
-    rows = [_row(ra, rb, factor, tolerance) for ra, rb in matches + pairs]
-    order = {"worse": 0, "better": 1, "same": 2}
+    varying = _varying(pd.concat([a, b], ignore_index=True))
+    rows = [_row(ra, rb, factor, tolerance, varying) for ra, rb in matches + pairs]
+    order = {"worse": 0, "better": 1, "undecided": 2, "same": 3}
     rows.sort(key=lambda r: (order[r["verdict"]], r["scene"], r["size"], r["technique"],
-                             r["params"]))
+                             r["setting"], r["changed"]))
     return Comparison(before, after, rows, [run_name(r) for r in left_a],
                       [run_name(r) for r in left_b], factor, tolerance)
+
+
+GROUP = ["scene", "width", "height", "technique"]
+
+
+def _group(row) -> tuple:
+    return tuple(row[k] for k in GROUP)
+
+
+def _varying(rows) -> dict[tuple, list[str]]:
+    """Per scene, size and technique, the parameters whose value differs among its runs in
+    either folder: what a line names a run by."""
+    out = {}
+    for key, g in rows.groupby(GROUP, sort=False):
+        settings = [json.loads(k) for k in g["params_key"]]
+        names = sorted({n for p in settings for n in p})
+        out[key] = [n for n in names if len({json.dumps(p.get(n)) for p in settings}) > 1]
+    return out
 
 
 def _common(a, b) -> list[tuple[dict, dict]]:
@@ -144,11 +197,10 @@ def pair_changed(only_a, only_b) -> tuple[list[tuple[dict, dict]], list[dict], l
     """Runs of one folder only, paired with the other's of the same scene, size and technique:
     the pairs that differ in the fewest parameters first, each run in one pair at most. Returns
     (pairs, A's runs left, B's runs left)."""
-    group = ["scene", "width", "height", "technique"]
     runs_a, runs_b = only_a.to_dict("records"), only_b.to_dict("records")
     candidates = sorted(
         (len(changed_params(ra, rb)), i, j) for i, ra in enumerate(runs_a)
-        for j, rb in enumerate(runs_b) if all(ra[k] == rb[k] for k in group))
+        for j, rb in enumerate(runs_b) if _group(ra) == _group(rb))
     used_a, used_b, pairs = set(), set(), []
     for _, i, j in candidates:
         if i not in used_a and j not in used_b:
@@ -160,62 +212,78 @@ def pair_changed(only_a, only_b) -> tuple[list[tuple[dict, dict]], list[dict], l
 
 
 def run_name(row) -> str:
-    """``scene 512x512 pcf k=16, res=1024``: a run as the listing names it."""
+    """``scene 512x512 pcf k=16, res=1024``: a run as the unpaired list names it (every
+    parameter: nothing beside it tells it apart)."""
     params = ", ".join(f"{k}={v}" for k, v in _params(row).items())
     return f"{row['scene']} {int(row['width'])}x{int(row['height'])} {row['technique']} {params}"
 
 
-def _row(ra: dict, rb: dict, factor: float, tolerance: float) -> dict:
+def _row(ra: dict, rb: dict, factor: float, tolerance: float,
+         varying: dict[tuple, list[str]]) -> dict:
     """One line of the comparison: a run in common, or a pair with its changed parameters."""
     changes = {}
     if ra["status"] == "ok" and rb["status"] != "ok":
         changes["status"] = "worse"
     elif ra["status"] != "ok" and rb["status"] == "ok":
         changes["status"] = "better"
-    time_verdict, ratio = time_change(ra, rb, factor)
+    time_verdict, ratio, why = time_change(ra, rb, factor)
     changes["time_ms"] = time_verdict
     for metric in ERRORS:
         changes[metric] = error_change(_value(ra, metric), _value(rb, metric), tolerance)
     verdicts = set(changes.values())
-    verdict = "worse" if "worse" in verdicts else "better" if "better" in verdicts else "same"
+    verdict = next(v for v in ("worse", "better", "undecided", "same")
+                   if v in verdicts or v == "same")
     changed = changed_params(ra, rb)
+    params = _params(rb)
     return {
         "scene": ra["scene"], "size": f"{int(ra['width'])}x{int(ra['height'])}",
         "technique": ra["technique"],
-        "params": ", ".join(f"{k}={v}" for k, v in _params(rb).items() if k not in changed),
+        # the parameters that tell the run from its technique's others here, less the changed
+        "setting": " ".join(f"{k}={params.get(k)}" for k in varying.get(_group(rb), [])
+                            if k not in changed),
         "changed": ", ".join(f"{k}: {x} → {y}" for k, (x, y) in changed.items()),
         "status": (ra["status"], rb["status"]), "ratio": ratio, "verdict": verdict,
-        "changes": changes,
-        "time": [(number(r.get("time_ms")), _interval(r)) for r in (ra, rb)],
+        "changes": changes, "undecided": why,
+        "time": [(number(r.get("time_ms")), _interval(r), _noisy(r)) for r in (ra, rb)],
         "errors": {metric: (_value(ra, metric), _value(rb, metric)) for metric in ERRORS}}
 
 
-MARK = {"worse": "+", "better": "-", "same": " "}
+MARK = {"worse": "*", "better": "", "undecided": "", "same": ""}  # only a regression is starred
+TIME_WORD = {"worse": "slower", "better": "faster", "same": ""}
 
 
-def _time_text(value: float | None, interval) -> str:
-    if value is None:
-        return "–"
-    return shown(value) + (f" [{shown(interval[0])}, {shown(interval[1])}]" if interval else "")
+def time_note(r: dict) -> str:
+    """What the line says of its time: slower (starred), faster, or why it cannot tell."""
+    verdict = r["changes"]["time_ms"]
+    if verdict == "undecided":
+        return f"? {r['undecided']}"
+    return TIME_WORD[verdict] + (" *" if verdict == "worse" else "")
+
+
+def error_text(r: dict, metric: str) -> str:
+    """One value where it did not change, ``before → after`` where it did, starred where it
+    got worse."""
+    x, y = (shown(v) or "–" for v in r["errors"][metric])
+    text = x if x == y else f"{x} → {y}"
+    return text + (" *" if r["changes"][metric] == "worse" else "")
 
 
 def text(c: Comparison, *, only_changed: bool = False) -> str:
-    """The comparison as a plain table (``+`` worse, ``-`` better), then a summary line."""
-    head = ["", "scene", "size", "technique", "time_ms before", "after", "ratio"] + [
-        f"{m} before → after" for m in ERRORS] + ["parameters (changed: before → after)"]
+    """The comparison as a plain table (``*``: got worse), then a summary line."""
+    head = ["", "scene", "size", "technique", "time_ms", "ratio", "time"] + list(ERRORS) + [
+        "setting"]
     lines = [head]
     for r in c.rows:
         if only_changed and r["verdict"] == "same":
             continue
         status = "" if r["status"] == ("ok", "ok") else f" ({r['status'][0]} → {r['status'][1]})"
+        (ta, *_), (tb, *_) = r["time"]
         lines.append([MARK[r["verdict"]], r["scene"], r["size"], r["technique"] + status,
-                      _time_text(*r["time"][0]), _time_text(*r["time"][1]),
-                      f"{r['ratio']:.2f}" if r["ratio"] else "–"]
-                     + [f"{shown(x) or '–'} → {shown(y) or '–'}" + (
-                         " *" if r["changes"][m] != "same" else "")
-                        for m, (x, y) in r["errors"].items()]
-                     + ["; ".join(filter(None, [r["changed"] and f"changed {r['changed']}",
-                                                r["params"]]))])
+                      f"{shown(ta) or '–'} → {shown(tb) or '–'}",
+                      f"{r['ratio']:.2f}" if r["ratio"] else "–", time_note(r)]
+                     + [error_text(r, m) for m in ERRORS]
+                     + ["; ".join(filter(None, [r["setting"],
+                                                r["changed"] and f"changed {r['changed']}"]))])
     widths = [max(len(row[i]) for row in lines) for i in range(len(head) - 1)]
     out = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)) + "  " + row[-1]
            for row in lines]
@@ -228,12 +296,15 @@ def text(c: Comparison, *, only_changed: bool = False) -> str:
 
 
 def summary(c: Comparison) -> str:
-    return (f"{c.common} runs in common, {c.paired} paired with changed parameters "
-            f"({len(c.only_before)} unpaired only in {c.before}, {len(c.only_after)} only in "
-            f"{c.after}): {c.worse} worse, {c.better} better (time beyond {c.factor:g}x "
-            f"and its interval, errors beyond {c.tolerance:.0%})")
+    """Two lines: what was matched, then what changed."""
+    unsure = (f", {c.undecided} undecided (time moved beyond {c.factor:g}x, but a run is noisy "
+              "or has no interval, or a median lies inside the other's)" if c.undecided else "")
+    return (f"{c.common} runs in common, {c.paired} paired with changed parameters; "
+            f"{len(c.only_before)} unpaired only in {c.before}, {len(c.only_after)} only in "
+            f"{c.after}\n{c.worse} worse, {c.better} better{unsure}")
 
 
 def write_html(c: Comparison, path: str | Path) -> Path:
-    page = render("compare.html.j2", c=c, errors=ERRORS, summary=summary(c), mark=MARK)
+    page = render("compare.html.j2", c=c, errors=ERRORS, summary=summary(c), mark=MARK,
+                  time_note=time_note, error_text=error_text)
     return write_page(Path(path), page)

@@ -4,7 +4,8 @@ A scene's cost-accuracy plot holds every run once (``runs``) and, per choice of 
 axis, the curves of :func:`harness.analysis.curves` (each technique's runs joined in knob order,
 labelled with their setting) and the Pareto front; the page switches between them. Image sizes
 are facets. The theta plot (alias and edge error against the angle between view and light)
-appears when the results span at least three angles.
+appears when the results span at least three angles; it joins points only across scenes that
+differ in their light alone.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import math
 import numpy as np
 
 from .. import analysis
+from ..technique import registry
 
 # column -> axis title (with its unit); offered where the results have finite values. A cost
 # axis is shown with the results' cost policy (:func:`cost_axes`): what a frame's time holds.
@@ -33,14 +35,17 @@ ERRORS = {
 # values shown in a point's hover besides the axes
 HOVER = ["time_ms", "gpu_estimate_ms", "edge_mae", "edge_ratio", "wrong_pct", "mae", "flip",
          "acne_pct", "leak_pct", "flicker", "pop_frames"]
+# the Papers page's series (claims' curves, not techniques), in their order
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf"]
 THETA_PLOT_MIN_ANGLES = 3
 
 
 def colours(techniques) -> dict[str, str]:
-    """One colour per technique, the same on every plot and table of the page."""
-    return {t: PALETTE[i % len(PALETTE)] for i, t in enumerate(sorted(set(techniques)))}
+    """One colour per technique, the same on every plot and table of the page and in every
+    dashboard: the technique's own (:func:`harness.technique.registry.colour`), whatever else
+    ran."""
+    return {t: registry.colour(t) for t in sorted(set(techniques))}
 
 
 def number(value) -> float | None:
@@ -114,21 +119,39 @@ def run_values(row) -> dict:
             "noisy": bool(number(row.get("noisy")))}
 
 
+# what the stored rows say of a scene's geometry and camera: scenes equal in all of these
+# differ in their light alone (a light sweep, experiments/theta_sweep.yaml)
+SAME_VIEW = ("width", "height", "triangles", "parts", "covered_px")
+
+
+def same_view(rows) -> list[str]:
+    """Per row, a key equal for rows of scenes that differ in their light alone: the
+    SAME_VIEW columns; the scene's own name where one of them is missing."""
+    def key(row) -> str:
+        values = [number(row.get(c)) for c in SAME_VIEW]
+        return "|".join(map(str, values)) if None not in values else f"scene {row['scene']}"
+    return [key(row) for row in rows.to_dict("records")]
+
+
 def theta(current, technique_colours: dict[str, str]) -> dict | None:
     """Alias and edge error against theta_deg per technique (and setting), one facet per metric,
-    when the current runs span at least THETA_PLOT_MIN_ANGLES angles; else None."""
+    when the current runs span at least THETA_PLOT_MIN_ANGLES angles; else None. A line joins
+    a technique's points in angle order only across scenes that differ in their light alone
+    (:func:`same_view`); the points of unrelated scenes stand alone."""
     rows = current[has_number(current, "theta_deg")]
     if rows.empty or rows["theta_deg"].round(6).nunique() < THETA_PLOT_MIN_ANGLES:
         return None
-    labels = analysis.setting_labels(rows)
+    rows = rows.assign(_setting=analysis.setting_labels(rows), _view=same_view(rows))
     facets = []
     for metric in [m for m in ("alias_mean", "alias_near", "edge_mae") if m in rows]:
         series = []
         have = rows[has_number(rows, metric)]
-        for (technique, w, h, setting), g in have.assign(_setting=labels).groupby(
-                ["technique", "width", "height", "_setting"], sort=True):
+        for (technique, w, h, setting, _), g in have.groupby(
+                ["technique", "width", "height", "_setting", "_view"], sort=True):
             g = g.sort_values("theta_deg")
-            name = " ".join(filter(None, [technique, size_label(w, h), setting]))
+            scenes = g["scene"].unique()
+            where = scenes[0] if len(scenes) == 1 else f"{len(scenes)} lights"
+            name = " ".join(filter(None, [technique, size_label(w, h), setting, where]))
             series.append({"name": name, "group": technique, "colour": technique_colours[technique],
                            "points": [{"x": float(t), "y": float(v),
                                        "tip": f"{name}\nscene {s}\ntheta {t:.3g}°\n{metric} {v:.4g}"}

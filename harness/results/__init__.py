@@ -214,31 +214,35 @@ def load(out_dir: str | Path, *, stale: str = "drop"):
     rows = read_rows(out_dir)
     if not rows:
         raise ConfigError(f"{path}: no results in it yet")
-    df = pd.DataFrame.from_records(rows).fillna("")
-    for name in df.columns:
-        kind = COLUMNS.get(name)
-        if kind in (int, float) or (kind is None and _numeric(df[name])):
-            df[name] = pd.to_numeric(df[name].replace("", None), errors="coerce")
-            if kind is int and df[name].notna().all():
-                df[name] = df[name].astype("int64")
+    raw = pd.DataFrame.from_records(rows).fillna("")
+    # every column typed on its own, then the frame made once: a column replaced in place
+    # gets a block of its own, and a frame of a hundred-odd blocks warns (PerformanceWarning)
+    # at the next column anyone adds
+    columns = {}
+    for name in raw.columns:
+        column, kind = raw[name], COLUMNS.get(name)
+        if kind in (int, float) or (kind is None and _numeric(column)):
+            column = pd.to_numeric(column.replace("", None), errors="coerce")
+            if kind is int and column.notna().all():
+                column = column.astype("int64")
             elif kind is float:  # "8388608" parses as an integer; the column is still float
-                df[name] = df[name].astype("float64")
-    for name in JSON_COLUMNS:
-        if name not in df.columns:
-            continue
-        empty = {} if name == "params" else None
-        try:
-            df[name] = df[name].map(lambda s: json.loads(s) if s else empty)
-        except ValueError as e:
-            raise _not_ours(path, f"a {name} cell is not JSON: {e}") from None
-    key = [c for c in ("scene", "width", "height", "technique") if c in df.columns]
-    same_run = df[key].astype(str).agg("|".join, axis=1) + "|" + df["params"].map(
+                column = column.astype("float64")
+        elif name in JSON_COLUMNS:
+            empty = {} if name == "params" else None
+            try:
+                column = column.map(lambda s, empty=empty: json.loads(s) if s else empty)
+            except ValueError as e:
+                raise _not_ours(path, f"a {name} cell is not JSON: {e}") from None
+        columns[name] = column
+    key = [c for c in ("scene", "width", "height", "technique") if c in raw.columns]
+    same_run = raw[key].astype(str).agg("|".join, axis=1) + "|" + columns["params"].map(
         lambda p: json.dumps(p, sort_keys=True))
-    if "code_version" in df.columns:
-        latest = df["code_version"].groupby(same_run).transform("last")
-        df["stale"] = df["code_version"] != latest
+    if "code_version" in raw.columns:
+        latest = raw["code_version"].groupby(same_run).transform("last")
+        columns["stale"] = raw["code_version"] != latest
     else:
-        df["stale"] = False
+        columns["stale"] = pd.Series(False, index=raw.index)
+    df = pd.DataFrame(columns, index=raw.index)
     if stale == "drop":
         df = df[~df["stale"]].drop(columns="stale").reset_index(drop=True)
     return df

@@ -7,6 +7,7 @@ measure   prepared batches, interleaved timing rounds, moving sequences
 score     truth, metric, cost and timing columns, the arrays a run stores
 store     arrays, then the row, into the run folder under its lock
 api       ``evaluate``: one run in this process, nothing stored
+estimate  what ``shadowbench plan`` says a plan's runs will take, from a folder's stored runs
 
 The public names are re-exported here; callers (cli, distributed, tests) use them through
 this package, so that replacing one here (a test's patch) reaches every caller.

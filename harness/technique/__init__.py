@@ -92,6 +92,9 @@ class Technique:
     # the baseline: those its paper or its issue asks to be compared with (rays against
     # volumes, say). Names not in a results folder are left out there.
     rivals: ClassVar[tuple[str, ...]] = ()
+    # The technique's colour in every dashboard, "#rrggbb", declared in its own class body (not
+    # inherited); without one, its name's colour (:mod:`harness.technique.colour`).
+    colour: ClassVar[str | None] = None
     # Light types (harness.scene.Light.type) the technique does not render, each with the
     # reason, which a run on a scene so lit reports as skipped (:meth:`check_light`, before
     # ``prepare``). A point light shines every way, so a technique built on one light frustum

@@ -4,7 +4,9 @@ them names (following ``#include``, into shared packages and the harness's own s
 
 A file counts when it lies inside a technique root: the top-level package of the technique's
 module or of any registered technique (so a plugin that reuses ``techniques.common`` hashes the
-shared code it runs). Library code (numpy, the harness's Python) is outside every root.
+shared code it runs). Library code (numpy, the harness's Python) is outside every root. A
+class's colour declaration (``colour = "#rrggbb"``, :mod:`harness.technique.colour`) is left
+out: it changes no result.
 """
 
 from __future__ import annotations
@@ -25,8 +27,11 @@ _GLSL_NAME = re.compile(r"[\w./]+\.glsl")
 
 def code_hash(module_name: str) -> str:
     """The 12-hex-digit hash of the code reached from ``module_name`` (see the module)."""
+    from .colour import strip_declaration
+
     files = code_files(module_name)
-    return hashlib.sha256(b"".join(p.name.encode() + p.read_bytes() for p in files)).hexdigest()[:12]
+    return hashlib.sha256(b"".join(p.name.encode() + strip_declaration(p.read_bytes())
+                                   for p in files)).hexdigest()[:12]
 
 
 def code_files(module_name: str) -> list[Path]:

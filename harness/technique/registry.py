@@ -3,7 +3,7 @@
 Built-in techniques register exactly as a third-party package would: an entry point
 ``name = "package.module:Class"`` in that group. One entry point cannot break the others: one
 that fails to import, loads no Technique, has another name than its class, is registered twice,
-or declares bad quality knobs or declined lights is *broken* (:func:`broken`: its name with the
+or declares bad quality knobs, declined lights or colour is *broken* (:func:`broken`: its name with the
 reason), left out of :func:`techniques`, listed as broken by ``shadowbench list``, and bad input
 (exit 2, naming it) only where a command asks for it by name.
 
@@ -21,6 +21,7 @@ from importlib.metadata import entry_points
 from .code_version import GROUP
 from ..config import ConfigError
 from . import Technique, check_declined_lights, check_quality_knobs, declares_baseline
+from .colour import check_colour, declared_colour, name_colour
 
 # the project's distribution (pyproject.toml's name; `shadowbench` on the package index is
 # another project's): the built-ins'. Any other distribution is a plugin.
@@ -49,12 +50,12 @@ def _load(ep) -> type[Technique]:
         raise RegistryError(f"entry point {ep.name} = {ep.value} is not a Technique subclass")
     if cls.name != ep.name:
         raise RegistryError(f"entry point {ep.name!r} loads {ep.value}, whose name is {cls.name!r}")
-    for check, key in ((check_quality_knobs, "quality_knobs"),
-                       (check_declined_lights, "declines_lights")):
+    for check, key in ((check_quality_knobs, "quality_knobs."),
+                       (check_declined_lights, "declines_lights."), (check_colour, "colour: ")):
         try:
             check(cls)
         except ValueError as e:
-            raise RegistryError(f"technique {ep.name!r} ({ep.value}): {key}.{e}") from None
+            raise RegistryError(f"technique {ep.name!r} ({ep.value}): {key}{e}") from None
     return cls
 
 
@@ -139,6 +140,13 @@ def rivals(names) -> dict[str, tuple[str, ...]]:
     not registered here, a plugin's not installed, has none)."""
     registered = techniques()
     return {name: tuple(registered[name].rivals) for name in names if name in registered}
+
+
+def colour(name: str) -> str:
+    """The technique's colour in every dashboard: the one its class declares, else its name's
+    (a technique not installed here, a plugin's, has its name's)."""
+    cls = techniques().get(name)
+    return (declared_colour(cls) if cls is not None else None) or name_colour(name)
 
 
 def get(name: str) -> type[Technique]:

@@ -186,6 +186,7 @@ class CascadedShadowMap(Technique):
     """
 
     name = "csm"
+    colour = "#d62728"
     summary = "cascaded shadow maps: one map per slice of view depth"
     paper = ("Zhang, Sun, Xu, Lun 2006, Parallel-split shadow maps; Lauritzen, Salvi, Lefohn "
              "2011, Sample distribution shadow maps")

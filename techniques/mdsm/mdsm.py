@@ -149,6 +149,7 @@ class MultipleDepthShadowMap(Technique):
     """
 
     name = "mdsm"
+    colour = "#2ca02c"
     summary = "multiple-depth shadow map: n depths per cell, PCF(k, n) with up to nk + 1 levels"
     paper = "Pagot, Comba, Oliveira, Multiple-Depth Shadow Maps"
     # quality knobs: the map size (to 2048: at 4096 the selection pass alone costs make bench a

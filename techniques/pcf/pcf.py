@@ -81,6 +81,7 @@ class PercentageCloserFiltering(Technique):
     """
 
     name = "pcf"
+    colour = "#ff7f0e"
     summary = "percentage-closer filtering: k depth comparisons averaged"
     paper = "Reeves, Salesin, Cook 1987, Rendering antialiased shadows with depth maps"
     # quality knobs: the map size (factor-4 steps keep make bench within its 10 minutes), and

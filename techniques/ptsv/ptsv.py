@@ -110,6 +110,7 @@ class PerTriangleShadowVolumes(Technique):
     """
 
     name = "ptsv"
+    colour = "#e377c2"
     summary = "per-triangle shadow volumes tested in compute against a hierarchy of view samples"
     paper = ("Sintorn, Olsson, Assarsson 2011, An efficient alias-free shadow algorithm for "
              "opaque and transparent objects using per-triangle shadow volumes")

@@ -65,6 +65,7 @@ class RayTraced(Technique):
     """
 
     name = "rt"
+    colour = "#7f7f7f"
     summary = "ray-traced shadows: one any-hit ray per pixel through a two-level BVH"
     paper = ("Whitted 1980, An improved illumination model for shaded display; Aila, Laine 2009, "
              "Understanding the efficiency of ray traversal on GPUs; Karras 2012, Maximizing "

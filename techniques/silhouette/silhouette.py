@@ -109,6 +109,7 @@ class SilhouetteMap(Technique):
     """
 
     name = "silhouette"
+    colour = "#9467bd"
     summary = "silhouette map: depth map plus one silhouette point per texel, piecewise-linear edges"
     paper = "Sen, Cammarano, Hanrahan 2003, Shadow silhouette maps"
     # quality knob: the map size (the silhouette map has the depth map's), in factor-4 steps

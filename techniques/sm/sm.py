@@ -53,6 +53,7 @@ class ShadowMap(Technique):
     """
 
     name = "sm"
+    colour = "#1f77b4"
     summary = "shadow map: one depth comparison per pixel"
     paper = "Williams 1978, Casting curved shadows on curved surfaces"
     # quality knob: the map size (the one way Williams' map buys accuracy with time), in

@@ -133,6 +133,7 @@ class ShadowVolumes(Technique):
     """
 
     name = "sv"
+    colour = "#8c564b"
     summary = ("shadow volumes: stencil, alpha or screen buffer; z-pass, near-plane clipped or "
                "z-fail; half- or quarter-res mask")
     paper = ("Crow 1977, Shadow algorithms for computer graphics; Roettger, Irion, Ertl 2002, "

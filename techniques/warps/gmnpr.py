@@ -27,6 +27,7 @@ class GeneralizedMinimumNormWarp(WarpedShadowMap):
     """ + PARAMETER_TABLE
 
     name = "gmnpr"
+    colour = "#000000"
     summary = "generalized minimum-norm perspective shadow map: lambda keeps F(n) = F(f)"
     paper = ("Zhang, Sun, Zhao, Wang 2007, Generalized minimum-norm perspective shadow maps "
              "for anti-aliased shadow rendering in 3D computer games")

@@ -25,6 +25,7 @@ class LightSpacePerspectiveShadowMap(WarpedShadowMap):
     """ + PARAMETER_TABLE
 
     name = "lispsm"
+    colour = "#17becf"
     summary = "light space perspective shadow map: warp in light space, n_opt near distance"
     paper = "Wimmer, Scherzer, Purgathofer 2004, Light space perspective shadow maps"
     # quality knob: the map size (the warp is fixed by the view), in factor-4 steps that keep

@@ -26,6 +26,7 @@ class PerspectiveShadowMap(WarpedShadowMap):
     """ + PARAMETER_TABLE
 
     name = "psm"
+    colour = "#bcbd22"
     summary = "perspective shadow map: the map made in the camera's post-perspective space"
     paper = "Stamminger, Drettakis 2002, Perspective shadow maps"
     # quality knob: the map size (the warp is fixed by the view), in factor-4 steps that keep

@@ -82,8 +82,8 @@ def test_the_estimate_from_a_folder_of_the_same_runs_is_its_wall_time(small_run,
     code, text, _ = shadowbench(capsys, "plan", experiment, "--scene-file", SCENES, "--from", out)
     assert code == 0
     line = text.splitlines()[-1]
-    found = re.fullmatch(r"time: about (?:(\d+) min )?(\d+) s for the 9 runs to render \(9 like "
-                         r"a run stored in .*", line)
+    found = re.fullmatch(r"time: about (?:(\d+) min )?(\d+) s for the 9 runs to render, at the "
+                         r"pace of the runs stored in .* \(9 as stored there, 0 priced by .*", line)
     assert found, line
     assert int(found[1] or 0) * 60 + int(found[2]) == round(wall)
 

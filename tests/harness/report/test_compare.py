@@ -38,19 +38,24 @@ def test_a_slower_run_beyond_its_interval_is_flagged(tmp_path, make_results, cap
     b = make_results(tmp_path / "b", _with(RUNS, 0, time_ms=2.6, time_ms_ci_low=2.5,
                                            time_ms_ci_high=2.7))
     assert shadowbench(["compare", str(a), str(b)]) == 1
-    worse = [line for line in capsys.readouterr().out.splitlines() if line.startswith("+")]
+    worse = [line for line in capsys.readouterr().out.splitlines() if line.startswith("*")]
     assert len(worse) == 1 and "res=512" in worse[0] and "1.30" in worse[0]
+    assert "slower *" in worse[0]
 
 
 def test_a_slower_run_within_its_interval_or_the_factor_is_not(tmp_path, make_results):
-    """1.3x slower but with overlapping intervals, and 1.05x slower without intervals: no
-    change. Catches a compare that ignores the intervals or the factor."""
+    """1.3x slower but A's median inside B's interval: undecided; 1.05x slower without
+    intervals: the same. Catches a compare that ignores the intervals or the factor."""
     a = make_results(tmp_path / "a", RUNS)
     b = make_results(tmp_path / "b", _with(_with(RUNS, 0, time_ms=2.6, time_ms_ci_low=2.0,
                                                  time_ms_ci_high=3.2), 1, time_ms=3.15))
     c = compare.compare(a, b)
-    assert c.worse == 0 and [r["changes"]["time_ms"] for r in c.rows] == ["same"] * 3
-    assert compare.compare(a, b, factor=1.02).worse == 1  # the run without intervals, 1.05x
+    assert c.worse == 0
+    assert sorted(r["changes"]["time_ms"] for r in c.rows) == ["same", "same", "undecided"]
+    assert c.rows[0]["undecided"] == "inside an interval"  # undecided sorts before same
+    # the run without intervals, 1.05x, beyond a factor of 1.02: it cannot be told
+    again = compare.compare(a, b, factor=1.02)
+    assert again.worse == 0 and again.undecided == 2
 
 
 def test_a_worse_error_and_a_failed_run_are_flagged(tmp_path, make_results, capsys):
@@ -65,7 +70,7 @@ def test_a_worse_error_and_a_failed_run_are_flagged(tmp_path, make_results, caps
     out = capsys.readouterr().out
     assert "2 worse" in out
     c = compare.compare(a, b)
-    by_res = {r["params"].split("res=")[1].split(",")[0]: r for r in c.rows}
+    by_res = {r["setting"].removeprefix("res="): r for r in c.rows}
     assert by_res["1024"]["changes"]["edge_mae"] == "worse"
     assert by_res["1024"]["errors"]["edge_mae"][0] == 0.0 < by_res["1024"]["errors"]["edge_mae"][1]
     assert by_res["2048"]["changes"]["status"] == "worse"

@@ -254,14 +254,16 @@ def test_a_techniques_own_maps_are_shown(built, run_dir):
 # --- what the page is built from ----------------------------------------------------------------
 
 def test_theta_plot_appears_with_three_angles():
-    """alias_mean and edge_mae against theta per technique, joined in angle order, only when the
-    runs span three angles or more. Catches a plot drawn from two angles or joined unsorted."""
+    """alias_mean and edge_mae against theta per technique, joined in angle order (scenes that
+    differ in their light alone), only when the runs span three angles or more. Catches a plot
+    drawn from two angles or joined unsorted."""
     from harness.report import plots
 
     rows = pd.DataFrame({
         "scene": ["a", "b", "c", "a"], "technique": ["psm"] * 3 + ["sm"], "width": [64] * 4,
         "height": [64] * 4, "params": [{"res": 512}] * 4, "theta_deg": [60.0, 20.0, 40.0, 60.0],
-        "alias_mean": [1.5, 3.0, 2.0, np.nan], "edge_mae": [0.1, 0.3, 0.2, 0.05]})
+        "alias_mean": [1.5, 3.0, 2.0, np.nan], "edge_mae": [0.1, 0.3, 0.2, 0.05],
+        "triangles": [500] * 4, "parts": [2] * 4, "covered_px": [2000] * 4})
     spec = plots.theta(rows, {"psm": "#111", "sm": "#222"})
     alias = next(f for f in spec["facets"] if f["title"] == "alias_mean")
     assert [(p["x"], p["y"]) for p in alias["series"][0]["points"]] == [
