@@ -41,8 +41,10 @@ def current(df: pd.DataFrame) -> pd.DataFrame:
     version = {name: cls.code_version() for name, cls in registry.techniques().items()}
     rows = df[(df["status"] == "ok") & (df["code_version"] == df["technique"].map(version))]
     key = rows["params"].map(_params_key)
+    # a tuned folder's runs of one setting in two parts (best and defaults) are two runs
+    roles = [c for c in ("tuning", "tuned_on") if c in rows.columns]
     return (rows.assign(_params=key)
-            .drop_duplicates(subset=GROUP + ["technique", "_params"], keep="last")
+            .drop_duplicates(subset=GROUP + ["technique", "_params"] + roles, keep="last")
             .drop(columns="_params").reset_index(drop=True))
 
 

@@ -1,4 +1,4 @@
-"""shadowbench list | plan | run | reference | report | compare.
+"""shadowbench list | plan | run | tune | reference | report | compare.
 
 Exit codes: 0 all runs ok; 1 some runs failed (their rows say why), or the machine failed the
 command (a full disk: one line naming the file); 2 bad input (one line on stderr naming file
@@ -307,6 +307,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.add_argument("--report", action="store_true", help="build DIR/index.html at the end")
     q.set_defaults(func=cmd_run)
+
+    from .tune import add_parser as add_tune_parser
+
+    add_tune_parser(sub, planning)
 
     q = sub.add_parser("reference", help="compute (or fetch from cache) a scene's reference")
     q.add_argument("--scene", required=True)

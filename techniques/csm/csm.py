@@ -16,7 +16,8 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, LightDepthMap,
+from techniques.common.light_maps import (BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH, MAX_BIAS,
+                                          MAX_TEXELS, RECEIVER_PLANE_TUNING, LightDepthMap,
                                           depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
@@ -185,6 +186,10 @@ class CascadedShadowMap(Technique):
              "2011, Sample distribution shadow maps")
     # quality knob: how many slices share the view depth range (more cascades, more maps)
     quality_knobs = {"splits": (1, 2, 4)}
+    # the fit and the split scheme besides the bias terms: where each cascade's texels go
+    tunable = {**BIAS_TUNING, **RECEIVER_PLANE_TUNING, "fit": ("choice", ("frustum", "sdsm")),
+               "lambda": ("float", 0.0, 1.0)}
+    bias_terms = BIAS_TERMS
     Params = _Params
     declines_lights = {
         "spot": "cascades split a directional light's map; a spot light has one frustum",

@@ -8,7 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, MapShading
+from techniques.common.light_maps import BIAS_TERMS, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, MapShading
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 
@@ -45,6 +45,8 @@ class ShadowMap(Technique):
     # quality knob: the map size (the one way Williams' map buys accuracy with time), in
     # factor-4 steps that keep make bench within its 10 minutes
     quality_knobs = {"res": (256, 1024, 4096)}
+    tunable = BIAS_TUNING
+    bias_terms = BIAS_TERMS
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
     declines_lights = {}  # a point light gets a cube map: six faces

@@ -18,7 +18,8 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, LightDepthMap
+from techniques.common.light_maps import (BIAS_TERMS, BIAS_TUNING, MAX_BIAS, MAX_TEXELS,
+                                          RECEIVER_PLANE_TUNING, LightDepthMap)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
@@ -92,6 +93,8 @@ class WarpedShadowMap(Technique):
     ``alias_max``, ``alias_near`` (see :func:`alias_statistics`), ``outside_pct``."""
 
     Params = WarpParams
+    tunable = {**BIAS_TUNING, **RECEIVER_PLANE_TUNING}
+    bias_terms = BIAS_TERMS
     declines_lights = {"point": "its warp reparameterises one light frustum, and a point light "
                                 "shines every way"}
 
