@@ -29,7 +29,7 @@ def add_parser(sub, planning) -> None:
 
 # without an experiment, the timed runs (defaults and best) take this many frames: enough for
 # a median, few enough that tuning a scene stays within minutes
-TUNE_FRAMES, TUNE_WARMUP = "5", "1"
+TUNE_FRAMES, TUNE_WARMUP = "3", "1"
 
 
 def cmd_tune(args) -> int:

@@ -35,7 +35,7 @@ from pathlib import Path
 
 from .. import config as cfg
 from .. import results
-from ..analysis.tuning import LEAK_MARGIN, bias_window
+from ..analysis.tuning import ACNE_LIMIT, LEAK_MARGIN, bias_window
 from ..config.cache_entry import take_rebuilt_notes
 from ..technique import registry
 from ..technique.tunable import scaled_bias
@@ -161,7 +161,8 @@ def _tune_scene(scene, specs: list[RunSpec], renderer: ViewRenderer, *, budget: 
         cls = registry.get(spec.technique)
         space = {n: d for n, d in cls.tunable.items() if n not in fixed.get(spec.technique, ())}
         label = point_label(cls, spec.params)
-        search = Search(spec.params, space, budget,
+        # every tunable setting fixed by --set: the point's own setting is all there is to run
+        search = Search(spec.params, space, budget if space else 1,
                         study_seed(seed, view.name, spec.technique, label))
         points.append(Point(spec, label, search))
 
@@ -178,9 +179,11 @@ def _tune_scene(scene, specs: list[RunSpec], renderer: ViewRenderer, *, budget: 
     for point in points:
         point.best, point.met = point.search.best()
         if point.best is not None and not point.met:
-            say(f"{where}: {point.spec.technique} {point.label}: no setting meets acne <= 0.1 % "
-                f"and leak <= {point.leak_limit:.3g} %; the closest kept (acne "
-                f"{point.best.acne_pct:.3g} %, leak {point.best.leak_pct:.3g} %)")
+            # a result, not progress: said under --quiet too
+            print(f"{where}: {point.spec.technique} {point.label}: no setting meets acne <= "
+                  f"{ACNE_LIMIT:g} % and leak <= {point.leak_limit:.3g} %; the closest kept "
+                  f"(acne {point.best.acne_pct:.3g} %, leak {point.best.leak_pct:.3g} %)",
+                  file=sys.stderr)
     chosen = [p for p in points if p.best is not None]
     if not moving:
         _held_out(chosen, scene, renderer, on_view, say, where)
@@ -192,20 +195,13 @@ def _tune_scene(scene, specs: list[RunSpec], renderer: ViewRenderer, *, budget: 
 def _baseline_runs(points, view, renderer, on_view, say, where) -> dict:
     """The baseline at its defaults at each map size of the points, on the view; the leak limit
     of each map size (LEAK_MARGIN alone where no baseline is registered)."""
-    name = registry.baseline()
-    if name is None:
+    specs = _baseline_specs(points, on_view, "baseline")
+    if not specs:
         for point in points:
             point.leak_limit = LEAK_MARGIN
         return {}
-    cls = registry.get(name)
-    specs = {}
-    for point in points:
-        size = point.spec.params.get(MAP_SIZE)
-        params = validate_params(name, {MAP_SIZE: size} if size and MAP_SIZE in cls.Params.model_fields
-                                 else {}, "tune")
-        base = dataclasses.replace(point.spec, technique=name, code_version=cls.code_version())
-        specs[size] = on_view(base, params, "baseline")
-    say(f"{where}: the baseline {name} at {len(specs)} map size(s): the leak limits")
+    say(f"{where}: the baseline {registry.baseline()} at {len(specs)} map size(s): the leak "
+        "limits")
     rows = renderer.render(view, list(specs.values()))
     limits = {}
     for size, spec in specs.items():
@@ -242,6 +238,37 @@ def _search(points, view, renderer, on_view, limits, say, where) -> None:
             point.search.tell(spec.params, rows[spec.run_id], point.leak_limit)
         say(f"{where}: search round {round_number}: {len(asked)} settings "
             f"({time.perf_counter() - started:.0f} s)")
+
+
+def _baseline_specs(points, on_view, tuning: str, **timed) -> dict:
+    """The baseline technique at its defaults at each map size of the points, by map size
+    (none where no baseline is registered)."""
+    name = registry.baseline()
+    if name is None:
+        return {}
+    cls = registry.get(name)
+    specs = {}
+    for point in points:
+        size = point.spec.params.get(MAP_SIZE)
+        at_size = {MAP_SIZE: size} if size and MAP_SIZE in cls.Params.model_fields else {}
+        base = dataclasses.replace(point.spec, technique=name, code_version=cls.code_version())
+        specs[size] = on_view(base, validate_params(name, at_size, "tune"), tuning,
+                              **({"frames": point.spec.frames, "warmup": point.spec.warmup,
+                                  **timed} if timed else {}))
+    return specs
+
+
+def _baseline_at_defaults(points, scene, on_view, extra: dict) -> list[RunSpec]:
+    """Where the baseline is not tuned itself, its timed runs at defaults at the points' map
+    sizes: the cost the overview divides by at equal error."""
+    name = registry.baseline()
+    if name is None or any(point.spec.technique == name for point in points):
+        return []
+    specs = list(_baseline_specs(points, on_view, "defaults", target=scene).values())
+    cls = registry.get(name)
+    for spec in specs:
+        extra[spec.run_id] = {"tune_point": point_label(cls, spec.params)}
+    return specs
 
 
 def _held_out(chosen, scene, renderer, on_view, say, where) -> None:
@@ -329,6 +356,7 @@ def _timed(points, scene, renderer, on_view, say, where) -> None:
                               "held_out_edge_mae": point.held_out.get("best", math.nan),
                               "bias_window": point.window}
         owner[best.run_id] = (point, "best")
+    specs += _baseline_at_defaults(points, scene, on_view, extra)
     say(f"{where}: {len(specs)} runs at defaults and tuned, timed")
     rows = renderer.render(scene, specs, extra)
     for run_id, (point, part) in owner.items():

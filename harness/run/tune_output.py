@@ -18,10 +18,13 @@ TUNED_FILE = "tuned.yaml"
 
 
 def _setting(point) -> dict:
-    """A point's ``set:``: its quality knobs and every setting searched, as chosen."""
+    """A point's ``set:``: its quality knobs, every setting searched as chosen, and whatever
+    else differs from the defaults (the experiment's and --set's fixed values)."""
     cls = registry.get(point.spec.technique)
     params = point.best.params
-    names = [k for k in cls.quality_knobs if k in params] + list(point.search.space)
+    defaults = cls.Params().model_dump(mode="json")
+    names = ([k for k in cls.quality_knobs if k in params] + list(point.search.space)
+             + [k for k in params if params[k] != defaults.get(k)])
     return {name: params[name] for name in dict.fromkeys(names) if name in params}
 
 

@@ -4,13 +4,18 @@ already stored in DIR read back instead of rendered."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from .. import results
 from .measure import return_freed_memory, run_group
 from .plan import RunSpec
 from .score import failed_scene_row
-from .store import record_run
+from .store import record_runs
+
+# the rows of a group's finished runs are stored together, at least this often: one rewrite of
+# results.csv per run made the search's short runs wait on the file (O(runs^2) in all)
+FLUSH_SECONDS = 5.0
 
 
 class ViewRenderer:
@@ -52,26 +57,35 @@ class ViewRenderer:
             return rows
         view = self._view(scene, pending[0])
         if isinstance(view, Exception):
-            for spec in pending:
-                rows[spec.run_id] = self._record(spec, {**failed_scene_row(spec, view),
-                                                        **extra.get(spec.run_id, {})})
+            failed = [(spec, {**failed_scene_row(spec, view), **extra.get(spec.run_id, {})},
+                       None, None) for spec in pending]
+            self._record(failed)
+            rows.update({spec.run_id: row for spec, row, _, _ in failed})
             return rows
         frame, reference = view
         # one measurement of the camera pass per group, with the group's frames
         scene_ms, frags_scene = frame.measure_scene_pass(pending[0].frames, pending[0].warmup)
-        for spec, row, arrays in run_group(pending, frame, reference, scene_ms, frags_scene,
-                                           self.renderer_name):
-            rows[spec.run_id] = self._record(spec, {**row, **extra.get(spec.run_id, {})},
-                                             arrays, reference)
+        finished, flushed = [], time.monotonic()
+        try:
+            for spec, row, arrays in run_group(pending, frame, reference, scene_ms, frags_scene,
+                                               self.renderer_name):
+                row = {**row, **extra.get(spec.run_id, {})}
+                finished.append((spec, row, arrays, reference))
+                rows[spec.run_id] = row
+                if time.monotonic() - flushed >= FLUSH_SECONDS:
+                    self._record(finished)
+                    finished, flushed = [], time.monotonic()
+        finally:  # what finished is stored, whatever stops the group
+            self._record(finished)
         return rows
 
-    def _record(self, spec: RunSpec, row: dict, arrays=None, reference=None) -> dict:
-        record_run(self.out_dir, spec, row, arrays, reference)
-        self.rendered += 1
-        self.failed += row.get("status") == "error"
-        if row.get("status") in ("ok", "skipped"):
-            self.stored[spec.run_id] = row
-        return row
+    def _record(self, finished: list[tuple]) -> None:
+        record_runs(self.out_dir, finished)
+        for spec, row, _, _ in finished:
+            self.rendered += 1
+            self.failed += row.get("status") == "error"
+            if row.get("status") in ("ok", "skipped"):
+                self.stored[spec.run_id] = row
 
     def release(self, name: str) -> None:
         view = self.views.pop(name, None)
