@@ -15,6 +15,9 @@ these frames.
 - :func:`best_within_budget`: the most accurate setting within a multiple of the G-buffer time.
 - :func:`summary`: per technique across scenes, its share of fronts and its cost ratio to the
   baseline technique (``registry.baseline()``: sm among the built-ins) at equal error.
+
+:mod:`harness.analysis.tuning` gives the rows of a tune folder these are computed on (the tuned
+runs, the defaults' beside), ``tuning_gain`` and ``bias_window``.
 """
 
 from __future__ import annotations

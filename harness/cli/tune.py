@@ -33,20 +33,20 @@ TUNE_FRAMES, TUNE_WARMUP = "3", "1"
 
 
 def cmd_tune(args) -> int:
-    from . import _check_out, _names, _scene_file_or_error
+    from .options import check_out, names, scene_file_or_error
     from .. import results, run
     from ..run import tune as tuning
     from ..run.tune_output import summary_lines, write_tuned
 
     if not 1 <= args.budget <= tuning.MAX_BUDGET:
         raise ConfigError(f"--budget: must be in [1, {tuning.MAX_BUDGET}], got {args.budget}")
-    _check_out(args.out)
+    check_out(args.out)
     overrides = run.parse_overrides(args.set or [])
     default_frames = not args.experiment
     plan = run.plan_runs(
-        experiment_path=args.experiment, scene_file=_scene_file_or_error(args.scene_file),
-        scenes=_names("--scenes", args.scenes),
-        techniques=_names("--techniques", args.techniques), overrides=overrides,
+        experiment_path=args.experiment, scene_file=scene_file_or_error(args.scene_file),
+        scenes=names("--scenes", args.scenes),
+        techniques=names("--techniques", args.techniques), overrides=overrides,
         timing={"frames": args.frames or (TUNE_FRAMES if default_frames else None),
                 "warmup": args.warmup or (TUNE_WARMUP if default_frames else None),
                 "statistics": args.statistics, "max_runs": args.max_runs, "cost": args.cost},
