@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup plugin test bench report motion scale compare microbench microbench-compare reproduce lint clean
+.PHONY: setup plugin test bench report motion scale tune compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -80,6 +80,21 @@ SCALE_OUT ?= results/scale
 
 scale: setup
 	$(call timed_run,experiments/scale.yaml,$(SCALE_OUT),scale)
+
+# Settings tuned per scene (docs/fairness.md): each technique's tunable settings searched
+# against the reference on $(TUNE_FLAGS)' scenes, point by point of its quality curve ->
+# $(TUNE_OUT)/tuned.yaml and its dashboard (the verdict on the tuned settings). Cached: the
+# runs already in the folder are not rendered again, so a second make tune takes seconds.
+# make tune OUT=dir as make bench; TUNE_FLAGS="--scenes a,b --techniques t1,t2 --budget N".
+TUNE_OUT ?= $(if $(filter command line,$(origin OUT)),$(OUT),results/tune)
+TUNE_FLAGS ?= --scenes real_airplane,real_plates
+
+tune: setup
+	@start=$$(date +%s); \
+	$(VENV)/bin/shadowbench tune $(TUNE_FLAGS) --out $(TUNE_OUT); status=$$?; \
+	if [ $$status -le 1 ]; then $(VENV)/bin/shadowbench report $(TUNE_OUT) || exit $$?; fi; \
+	echo "make tune: $$(( $$(date +%s) - start )) s wall time"; \
+	exit $$status
 
 # Timings saved as JSON under .benchmarks/<machine>/; compare checks a new run against the last
 # saved one without replacing it.

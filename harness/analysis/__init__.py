@@ -15,6 +15,9 @@ these frames.
 - :func:`best_within_budget`: the most accurate setting within a multiple of the G-buffer time.
 - :func:`summary`: per technique across scenes, its share of fronts and its cost ratio to the
   baseline technique (``registry.baseline()``: sm among the built-ins) at equal error.
+
+:mod:`harness.analysis.tuning` gives the rows of a tune folder these are computed on (the tuned
+runs, the defaults' beside), ``tuning_gain`` and ``bias_window``.
 """
 
 from __future__ import annotations
@@ -41,8 +44,10 @@ def current(df: pd.DataFrame) -> pd.DataFrame:
     version = {name: cls.code_version() for name, cls in registry.techniques().items()}
     rows = df[(df["status"] == "ok") & (df["code_version"] == df["technique"].map(version))]
     key = rows["params"].map(_params_key)
+    # a tuned folder's runs of one setting in two parts (best and defaults) are two runs
+    roles = [c for c in ("tuning", "tuned_on") if c in rows.columns]
     return (rows.assign(_params=key)
-            .drop_duplicates(subset=GROUP + ["technique", "_params"], keep="last")
+            .drop_duplicates(subset=GROUP + ["technique", "_params"] + roles, keep="last")
             .drop(columns="_params").reset_index(drop=True))
 
 

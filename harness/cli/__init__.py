@@ -1,4 +1,4 @@
-"""shadowbench list | plan | run | reference | report | compare.
+"""shadowbench list | plan | run | tune | reference | report | compare.
 
 Exit codes: 0 all runs ok; 1 some runs failed (their rows say why), or the machine failed the
 command (a full disk: one line naming the file); 2 bad input (one line on stderr naming file
@@ -19,63 +19,13 @@ from pathlib import Path
 from ..config import ConfigError, shipped
 from ..machine import interrupt, warnings_log
 from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
+# the options the commands share (tune's module imports them from there too)
+from .options import (check_out as _check_out, names as _names, scene_file,
+                      scene_file_or_error as _scene_file_or_error)
 
-DEFAULT_SCENE_FILE = "scenes.yaml"
 MAX_WORKERS = 256
 # OSErrors that say the machine could not finish the command, not that the input was bad
 MACHINE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM}
-
-
-def _names(option: str, text: str | None) -> list[str] | None:
-    """``a,b`` -> ["a", "b"]; None when the option is absent; an error when it names nothing."""
-    if text is None:
-        return None
-    names = [t.strip() for t in text.split(",") if t.strip()]
-    if not names:
-        raise ConfigError(f"{option} {text!r}: names nothing; give comma-separated names, or "
-                          "leave the option out for all")
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise ConfigError(f"{option} {text!r}: names {', '.join(repeated)} more than once")
-    return names
-
-
-def _check_out(text: str) -> None:
-    """``--out`` must be, or be creatable as, a folder of our own: a ConfigError naming
-    ``--out`` otherwise, before anything is planned or written."""
-    out = Path(text).resolve()
-    if out.parts[1:2] in (("proc",), ("sys",)):
-        raise ConfigError(f"--out {text}: is under /{out.parts[1]}, the kernel's files, not a "
-                          "place for results")
-    existing = next(p for p in (out, *out.parents) if os.path.lexists(p))
-    if not existing.is_dir():
-        what = "is a file" if existing == out else f"lies under {existing}, a file"
-        raise ConfigError(f"--out {text}: {what}, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        reason = ("Read-only file system" if os.statvfs(existing).f_flag & os.ST_RDONLY
-                  else "permission denied")
-        raise ConfigError(f"--out {text}: cannot write in {existing}: {reason}")
-
-
-def scene_file(text: str | None) -> Path | None:
-    """The scene file a command reads: ``--scene-file`` as given (a missing one is bad input),
-    else ./scenes.yaml, else the scenes shipped with the package (:mod:`harness.config.shipped`:
-    a wheel's package data, or a checkout's root); None when there is none."""
-    if text is not None:
-        if not Path(text).exists():  # a FIFO, socket or folder is said by the reader
-            raise ConfigError(f"--scene-file {text}: no such file")
-        return Path(text)
-    if Path(DEFAULT_SCENE_FILE).is_file():
-        return Path(DEFAULT_SCENE_FILE)
-    return shipped.scene_file()
-
-
-def _scene_file_or_error(text: str | None) -> str:
-    path = scene_file(text)
-    if path is None:
-        raise ConfigError("no scene file: no ./scenes.yaml, and none shipped with the package; "
-                          "give one with --scene-file")
-    return str(path)
 
 
 def cmd_list(args) -> int:
@@ -305,6 +255,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.add_argument("--report", action="store_true", help="build DIR/index.html at the end")
     q.set_defaults(func=cmd_run)
+
+    from .tune import add_parser as add_tune_parser
+
+    add_tune_parser(sub, planning)
 
     q = sub.add_parser("reference", help="compute (or fetch from cache) a scene's reference")
     q.add_argument("--scene", required=True)

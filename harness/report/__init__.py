@@ -18,6 +18,8 @@ The page's parts, one module each:
 - ``scale``: with family scenes, cost at equal error against triangles, the fitted exponents,
   the fronts per size and the crossover table;
 - ``stability``: scenes x techniques with failures, NaN/Inf and V outside [0, 1];
+- ``tuning``: in a folder ``shadowbench tune`` wrote (whose verdict is then given on the tuned
+  runs, the defaults' beside), what tuning bought and the bias window's acne-against-leak curve;
 - ``papers``: the Papers page; ``compare``: two results folders run by run.
 
 Names and values from the results reach the page only through autoescaped templates
@@ -36,6 +38,7 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 from .. import analysis
+from ..analysis import tuning as tuned_runs  # not .tuning, this package's own view
 from ..machine import warnings_log
 from ..technique import registry
 from . import images, overview, plots
@@ -45,6 +48,7 @@ from .render import render, write_page
 from .scene_section import scene_section, shown_rows
 from .stability import stability_table
 from .stored import Folder, slug
+from .tuning import tuning_view
 from .viewer import SceneImages
 
 __all__ = ["build_report", "build_papers_page", "visibility_png"]
@@ -66,6 +70,11 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
     current = analysis.current(everything)
     baseline = registry.baseline(among=set(everything["technique"]))  # a plugin not run here
     # cannot make this folder's report fail
+    tuned = tuned_runs.has_tuning(current)
+    if tuned:  # a tune folder: the verdict on the tuned runs, the defaults' beside
+        with_tuning, defaults = current, tuned_runs.defaults_rows(current)
+        current = tuned_runs.verdict_rows(current)
+        everything = everything[everything["tuning"].isin(["best", "defaults"])]
     shown = shown_rows(everything, current)
     colours = plots.colours(shown["technique"])
     described = meta.get("scenes") if isinstance(meta.get("scenes"), dict) else {}
@@ -89,6 +98,8 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
             caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
             hidden=len(everything) - len(shown),
             verdicts=overview.verdicts(current, shown, colours), colours=colours,
+            defaults_verdicts=overview.verdicts(defaults, shown, colours) if tuned else None,
+            tuning=tuning_view(with_tuning, colours) if tuned else None,
             baseline=baseline or "the baseline", stability=stability_table(shown),
             scale=scale_view(current, colours, baseline,
                              registry.rivals(set(current["technique"]))),

@@ -148,8 +148,17 @@ def write_rows(out_dir: str | Path, rows: list[dict]) -> None:
 
 def record_row(out_dir: str | Path, row: dict) -> None:
     """Add a run's row, replacing an earlier row of the same run (a failed run retried)."""
-    kept = [r for r in read_rows(out_dir) if r["run_id"] != row["run_id"]]
-    write_rows(out_dir, kept + [row])
+    record_rows(out_dir, [row])
+
+
+def record_rows(out_dir: str | Path, rows: list[dict]) -> None:
+    """Add runs' rows in one replacement of the file, each replacing an earlier row of its
+    run."""
+    if not rows:
+        return
+    new = {row["run_id"] for row in rows}
+    kept = [r for r in read_rows(out_dir) if r["run_id"] not in new]
+    write_rows(out_dir, kept + rows)
 
 
 def done_ids(out_dir: str | Path) -> set[str]:

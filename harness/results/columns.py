@@ -157,6 +157,33 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("reference_array", str, "path", "the reference's arrays, relative to the folder",
            _ERROR),
     Column("finished_at", str, "UTC ISO 8601", "when the row was written"),
+    # shadowbench tune (docs/fairness.md)
+    Column("tuning", str, "", "the run's part in `shadowbench tune`: `defaults` (the technique "
+           "at its defaults at a point of its quality curve, timed), `baseline` (the baseline "
+           "technique at its defaults on the searched view: the leak limit), `search` (a setting "
+           "the search tried, one frame), `best` (the setting chosen, timed), `held_out` (the "
+           "best on a second view), `window` (a scale of the best's bias terms)",
+           "for a run not made by tune"),
+    Column("tuned_on", str, "", "the view the settings were tuned on: the scene's name, or "
+           "`<scene>.frame0` for the first frame of a moving scene", "as tuning"),
+    Column("tune_point", str, "", "the point of the quality curve the run belongs to: each "
+           "quality knob as `name=value` (`k=16 res=1024`)", "as tuning"),
+    Column("leak_limit", float, "%", "the search's leak limit: the baseline's leak_pct at "
+           "defaults and the same map size on the searched view, plus 0.1", "as tuning"),
+    Column("tuning_met", int, "0/1", "on a best row: 1 when the setting meets acne_pct <= 0.1 "
+           "and leak_pct <= leak_limit on the searched view, 0 when none tried does (the "
+           "closest kept)", "except on best rows"),
+    Column("tuning_trials", int, "count", "on a best row: the settings the search tried",
+           "except on best rows"),
+    Column("held_out_edge_mae", float, "V (0..1)", "on a best row of a still scene: edge_mae "
+           "of the best setting on the view orbited 10 degrees about the camera's target (over-"
+           "tuning shows as a rise over edge_mae)", "except on best rows of still scenes"),
+    Column("bias_scale", float, "ratio", "on a window row: the factor every bias term of the "
+           "best setting was multiplied by", "except on window rows"),
+    Column("bias_window", float, "log10 ratio", "on the best row of a technique's window "
+           "point: log10 of the width of the bias scales with acne_pct <= 0.1 and leak_pct <= "
+           "leak_limit (harness.analysis.tuning.bias_window); 0 where none qualifies",
+           "except on that row"),
 )
 
 # name -> type; these keep their names and meaning (DESIGN.md). Techniques may add columns.

@@ -8,6 +8,9 @@ score     truth, metric, cost and timing columns, the arrays a run stores
 store     arrays, then the row, into the run folder under its lock
 api       ``evaluate``: one run in this process, nothing stored
 estimate  what ``shadowbench plan`` says a plan's runs will take, from a folder's stored runs
+tune      ``shadowbench tune``: the points' searches in rounds (tune_search: one Optuna study per
+          point; tune_render: groups on a kept G-buffer and reference), the best and the
+          defaults timed; tune_output: DIR/tuned.yaml and the summary
 
 The public names are re-exported here; callers (cli, distributed, tests) use them through
 this package, so that replacing one here (a test's patch) reaches every caller.

@@ -39,6 +39,10 @@ class RunSpec:
     code_version: str = ""
     statistics: str = "order"  # how the median's interval is computed (harness.machine.timing)
     cost: str = "dynamic"  # the cost policy (harness.run.measure)
+    # a run of `shadowbench tune` (harness.run.tune): its role (defaults, search, best, ...) and
+    # the view its settings were tuned on; empty for any other run
+    tuning: str = ""
+    tuned_on: str = ""
 
     @property
     def params_json(self) -> str:
@@ -46,10 +50,14 @@ class RunSpec:
 
     @property
     def run_id(self) -> str:
-        text = "|".join(map(str, (self.scene, self.scene_key, self.width, self.height,
-                                  self.technique, self.params_json, self.code_version,
-                                  self.frames, self.warmup, self.statistics, self.samples,
-                                  self.ref_seed, metrics.VERSION, self.cost)))
+        fields = (self.scene, self.scene_key, self.width, self.height, self.technique,
+                  self.params_json, self.code_version, self.frames, self.warmup, self.statistics,
+                  self.samples, self.ref_seed, metrics.VERSION, self.cost)
+        # a tuning role enters the id (a best setting equal to the defaults is stored as both),
+        # and only then: every other run keeps the id it had before tuning existed
+        if self.tuning:
+            fields += (self.tuning, self.tuned_on)
+        text = "|".join(map(str, fields))
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -115,11 +123,12 @@ def validate_params(technique: str, values: dict, where: str) -> dict:
 
 def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str] | None,
               techniques: list[str] | None, overrides: dict[str, dict],
-              timing: dict | None = None) -> Plan:
+              timing: dict | None = None, default_grids=None) -> Plan:
     """Everything validated up front: a bad input raises ConfigError before any output.
 
     ``timing``: command-line ``frames``, ``warmup``, ``statistics``, ``max_runs``, ``cost``
-    replacing the experiment's (see :func:`harness.config.with_timing`)."""
+    replacing the experiment's (see :func:`harness.config.with_timing`). ``default_grids(cls)``:
+    without an experiment, each technique's grid (default: its defaults alone)."""
     if experiment_path:
         exp, node = cfg.load_experiment(experiment_path)  # before the scene file it may name
         exp_path = Path(experiment_path)
@@ -130,7 +139,8 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     registry.baseline()  # two declared baselines: one line naming both, before anything else
     broken = registry.broken()
     if not experiment_path:
-        exp = cfg.Experiment(techniques={name: cfg.Grid() for name in registered})
+        exp = cfg.Experiment(techniques={name: default_grids(cls) if default_grids else cfg.Grid()
+                                         for name, cls in registered.items()})
         node, exp_path, exp_text = None, Path("(command line)"), ""
     exp = cfg.with_timing(exp, **(timing or {}))
     # every scene validated as written; the meshes of the chosen ones only, once chosen

@@ -27,7 +27,7 @@ def _run_columns(spec: RunSpec) -> dict:
             "technique": spec.technique, "params": spec.params_json, "width": spec.width,
             "height": spec.height, "map_res": spec.params.get("res"), "frames": spec.frames,
             "code_version": spec.code_version, "ref_samples": spec.samples,
-            "cost": spec.cost}
+            "cost": spec.cost, "tuning": spec.tuning, "tuned_on": spec.tuned_on}
 
 
 def failed_scene_row(spec: RunSpec, error: Exception) -> dict:

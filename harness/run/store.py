@@ -48,6 +48,23 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
     Arrays are written before their row: a kill between the two leaves an unreferenced array
     that the rerun overwrites. Every executor records through here, the client alone. A run
     whose scene failed has no reference (None) and no arrays."""
+    store_arrays(out_dir, spec, row, arrays, reference)
+    results.record_row(out_dir, row)
+
+
+def record_runs(out_dir: Path, finished: list[tuple]) -> None:
+    """Store several finished runs, ``(spec, row, arrays, reference)`` each, as
+    :func:`record_run` does, their rows in one replacement of results.csv: many short runs
+    (tune's search) would otherwise rewrite the whole file once each."""
+    for spec, row, arrays, reference in finished:
+        store_arrays(out_dir, spec, row, arrays, reference)
+    results.record_rows(out_dir, [row for _, row, _, _ in finished])
+
+
+def store_arrays(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.ndarray] | None,
+                 reference) -> None:
+    """A finished run's arrays and its scene's reference (once), their paths into its row, and
+    the row's ``finished_at``; the row itself is the caller's to record."""
     if reference is not None:
         ref_name = reference_array_path(spec.scene, spec.width, spec.height, spec.samples,
                                         spec.ref_seed)
@@ -63,4 +80,3 @@ def record_run(out_dir: Path, spec: RunSpec, row: dict, arrays: dict[str, np.nda
         results.save_arrays(results.inside(out_dir, array), **arrays)
         row["array"] = str(array)
     row["finished_at"] = utc_now()
-    results.record_row(out_dir, row)

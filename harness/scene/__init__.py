@@ -162,6 +162,20 @@ class BuiltScene:
             self.name, new_config, self.parts, self.light,
             scene_key(new_config, self.source, self.poses), self.source, self.poses))
 
+    def orbited(self, degrees: float, name: str) -> "BuiltScene":
+        """This still scene seen from a camera orbited ``degrees`` about its up axis through its
+        target (as a moving scene's ``camera_orbit`` turns it), named ``name``: the same
+        triangles and light from another view (tune's held-out view)."""
+        camera = self.config.camera
+        turn = motion_paths.rotation(camera.up, degrees)
+        target = np.asarray(camera.target, dtype=np.float64)
+        position = turn @ (np.asarray(camera.position, dtype=np.float64) - target) + target
+        config = self.config.model_copy(update={"camera": camera.model_copy(
+            update={"position": tuple(float(x) for x in position)})})
+        return self._sharing_geometry(BuiltScene(
+            name, config, self.parts, self.light, scene_key(config, self.source, self.poses),
+            self.source, self.poses))
+
     @property
     def frames(self) -> int:
         """Frames of its ``motion`` sequence; 1 for a still scene."""

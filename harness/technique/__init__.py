@@ -84,6 +84,12 @@ class Technique:
     # ``techniques: curves`` runs, one knob at a time from the defaults (see
     # :func:`quality_settings`); checked by :func:`check_quality_knobs` when registered.
     quality_knobs: ClassVar[dict[str, tuple]] = {}
+    # The settings a user would adjust per scene, and the ranges ``shadowbench tune`` searches:
+    # ``{parameter: ("log" | "float" | "int", low, high) or ("choice", (value, ...))}``, each
+    # holding the default; ``bias_terms``: those of them one scale multiplies together for the
+    # bias window. Checked by :func:`harness.technique.tunable.check_tunable` when registered.
+    tunable: ClassVar[dict[str, tuple]] = {}
+    bias_terms: ClassVar[tuple[str, ...]] = ()
     # The technique whose cost the others' is divided by at equal error (analysis.summary, the
     # dashboard's overview): one registered technique says so in its own class body, the harness
     # names none. A subclass does not inherit it (:func:`declares_baseline`).

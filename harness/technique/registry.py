@@ -3,9 +3,9 @@
 Built-in techniques register exactly as a third-party package would: an entry point
 ``name = "package.module:Class"`` in that group. One entry point cannot break the others: one
 that fails to import, loads no Technique, has another name than its class, is registered twice,
-or declares bad quality knobs, declined lights or colour is *broken* (:func:`broken`: its name with the
-reason), left out of :func:`techniques`, listed as broken by ``shadowbench list``, and bad input
-(exit 2, naming it) only where a command asks for it by name.
+or declares bad quality knobs, declined lights, colour or tunable settings is *broken*
+(:func:`broken`: its name with the reason), left out of :func:`techniques`, listed as broken by
+``shadowbench list``, and bad input (exit 2, naming it) only where a command asks for it by name.
 
 The baseline (the technique whose cost the dashboard divides the others' by) is declared in a
 class's own body (``baseline = True``), never inherited: a plugin subclassing sm is not a second
@@ -22,6 +22,7 @@ from .code_version import GROUP
 from ..config import ConfigError
 from . import Technique, check_declined_lights, check_quality_knobs, declares_baseline
 from .colour import check_colour, declared_colour, name_colour
+from .tunable import check_tunable
 
 # the project's distribution (pyproject.toml's name; `shadowbench` on the package index is
 # another project's): the built-ins'. Any other distribution is a plugin.
@@ -51,7 +52,8 @@ def _load(ep) -> type[Technique]:
     if cls.name != ep.name:
         raise RegistryError(f"entry point {ep.name!r} loads {ep.value}, whose name is {cls.name!r}")
     for check, key in ((check_quality_knobs, "quality_knobs."),
-                       (check_declined_lights, "declines_lights."), (check_colour, "colour: ")):
+                       (check_declined_lights, "declines_lights."), (check_colour, "colour: "),
+                       (check_tunable, "tunable.")):
         try:
             check(cls)
         except ValueError as e:

@@ -35,6 +35,15 @@ def bias_uniforms(mode: str) -> dict:
     """The uniforms of shadow_map.glsl that pick ``mode``."""
     return dict(bias_mode=BIAS_MODES[mode])
 
+# What `shadowbench tune` searches of the bias rule every map technique shares (shadow_map.glsl):
+# the constant bias over six decades of scene units around the default 0.02 (scenes here span
+# 1 to 1e5 units), the slope term from none to four times its default, the normal offset from
+# none to two texels; all three are the bias terms the bias window scales together.
+BIAS_TUNING = {"bias": ("log", 1e-5, 10.0), "slope_bias": ("float", 0.0, 4.0),
+               "normal_offset": ("float", 0.0, 2.0)}
+BIAS_TERMS = ("bias", "slope_bias", "normal_offset")
+# the bias mode (above): which receiver depth each read is compared with
+BIAS_MODE_TUNING = {"bias_mode": ("choice", tuple(BIAS_MODES))}
 
 # Clear value of the map: "no occluder in this texel", so every receiver there is lit.
 EMPTY_DEPTH = 3.0e38

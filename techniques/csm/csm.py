@@ -16,8 +16,9 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import (EMPTY_DEPTH, MAX_BIAS, MAX_TEXELS, BiasMode,
-                                          LightDepthMap, bias_uniforms, depth_precision)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
+                                          MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms,
+                                          depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay
@@ -192,6 +193,10 @@ class CascadedShadowMap(Technique):
              "2011, Sample distribution shadow maps")
     # quality knob: how many slices share the view depth range (more cascades, more maps)
     quality_knobs = {"splits": (1, 2, 4)}
+    # the fit and the split scheme besides the bias terms: where each cascade's texels go
+    tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING, "fit": ("choice", ("frustum", "sdsm")),
+               "lambda": ("float", 0.0, 1.0)}
+    bias_terms = BIAS_TERMS
     Params = _Params
     declines_lights = {
         "spot": "cascades split a directional light's map; a spot light has one frustum",

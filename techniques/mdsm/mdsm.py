@@ -17,8 +17,8 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, FilteredShadowMap,
-                                           Sampling)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling)
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
 
@@ -155,6 +155,9 @@ class MultipleDepthShadowMap(Technique):
     # quality knobs: the map size (to 2048: at 4096 the selection pass alone costs make bench a
     # tenth of its time), the depths and the samples per cell
     quality_knobs = {"res": (256, 1024, 2048), "n": (1, 2, 3), "k": (1, 4, 9)}
+    # the selection window besides the bias terms: how far a depth may come from its cell
+    tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING, "q": ("choice", WINDOW_SAMPLES)}
+    bias_terms = BIAS_TERMS
     declines_lights = {"point": "it has no cube-map path: its selection pass and PCF(k, n) read "
                                 "square windows of one light frustum's map"}
 

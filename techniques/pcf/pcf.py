@@ -11,8 +11,8 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, FilteredShadowMap,
-                                           Sampling)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, BiasMode,
+                                          FilteredShadowMap, Sampling)
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
 
@@ -87,6 +87,14 @@ class PercentageCloserFiltering(Technique):
     # quality knobs: the map size (factor-4 steps keep make bench within its 10 minutes), and
     # the samples
     quality_knobs = {"res": (256, 1024, 4096), "k": (1, 4, 16, 36)}
+    # its constant bias is a range [bias_min, bias_max] (Reeves et al. tune Bias0 and Bias1 per
+    # scene), its filter a region of the footprint times res_factor, at least min_size texels
+    tunable = {"bias_min": BIAS_TUNING["bias"], "bias_max": BIAS_TUNING["bias"],
+               "slope_bias": BIAS_TUNING["slope_bias"],
+               "normal_offset": BIAS_TUNING["normal_offset"], **BIAS_MODE_TUNING,
+               "region": ("choice", ("footprint", "fixed")),
+               "res_factor": ("log", 0.25, 4.0), "min_size": ("log", 0.5, 4.0)}
+    bias_terms = ("bias_min", "bias_max", "slope_bias", "normal_offset")
     declines_lights = {}  # a point light gets a cube map: six faces
 
     class Params(TechniqueParams):

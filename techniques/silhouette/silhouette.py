@@ -15,8 +15,8 @@ from harness.gl.shaders import Program
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, fit_light
 
-from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
-                                           bias_uniforms)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
 from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh
 
 HERE = Path(__file__).parent
@@ -115,6 +115,8 @@ class SilhouetteMap(Technique):
     # quality knob: the map size (the silhouette map has the depth map's), in factor-4 steps
     # that keep make bench within its 10 minutes
     quality_knobs = {"res": (256, 1024, 4096)}
+    tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
+    bias_terms = BIAS_TERMS
     declines_lights = {"point": "it has no cube-map path: its silhouette points and edge "
                                 "reconstruction live in one light frustum's texel grid"}
 

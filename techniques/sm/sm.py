@@ -8,7 +8,8 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import MAX_BIAS, MAX_TEXELS, BiasMode, MapShading, bias_uniforms
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, MapShading, bias_uniforms)
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 
@@ -59,6 +60,8 @@ class ShadowMap(Technique):
     # quality knob: the map size (the one way Williams' map buys accuracy with time), in
     # factor-4 steps that keep make bench within its 10 minutes
     quality_knobs = {"res": (256, 1024, 4096)}
+    tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
+    bias_terms = BIAS_TERMS
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
     declines_lights = {}  # a point light gets a cube map: six faces

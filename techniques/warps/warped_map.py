@@ -18,8 +18,8 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
-                                           bias_uniforms)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
@@ -99,6 +99,8 @@ class WarpedShadowMap(Technique):
     ``alias_max``, ``alias_near`` (see :func:`alias_statistics`), ``outside_pct``."""
 
     Params = WarpParams
+    tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
+    bias_terms = BIAS_TERMS
     declines_lights = {"point": "its warp reparameterises one light frustum, and a point light "
                                 "shines every way"}
 
