@@ -51,13 +51,14 @@ def _experiment(tmp_path, techniques: dict, frames: int = 1) -> str:
 @pytest.fixture(scope="module")
 def known(tmp_path_factory, gl_context):
     """The known scene tuned once: sm at map 64 with its constant bias alone searched (slope
-    and normal offset fixed at 0 by --set), BUDGET settings."""
+    and normal offset fixed at 0, the bias mode at slope, by --set), BUDGET settings."""
     folder = tmp_path_factory.mktemp("tune")
     scene_file = write_scenes(folder, {"known": KNOWN})
     experiment = _experiment(folder, {"sm": {"set": {"res": MAP}}})
     out = folder / "out"
     args = ["tune", experiment, "--scene-file", scene_file, "--budget", BUDGET,
-            "--set", "sm.slope_bias=0", "--set", "sm.normal_offset=0", "--out", out, "--quiet"]
+            "--set", "sm.slope_bias=0", "--set", "sm.normal_offset=0", "--set", "sm.bias_mode=slope",
+            "--out", out, "--quiet"]
     from harness.cli import main
 
     code = main([str(a) for a in args])
