@@ -26,12 +26,14 @@ MIB = 2 ** 20
 
 
 class _Lines:
-    """A progress bar that prints the resident memory as each group's reference begins."""
+    """A progress (harness.run.sweep.RunProgress's renderer side) that prints the resident
+    memory as each group begins."""
 
-    def set_description_str(self, text: str) -> None:
-        if text.endswith(": reference"):
-            print(f"{text.removesuffix(': reference'):32s} {resident_bytes() / MIB:7.0f} MiB "
-                  f"resident as it begins", flush=True)
+    def stage(self, text: str) -> None:
+        print(f"{text:32s} {resident_bytes() / MIB:7.0f} MiB resident as it begins", flush=True)
+
+    def status(self, text: str) -> None:
+        pass
 
     def frame_done(self, specs) -> None:
         pass
