@@ -51,8 +51,8 @@ class _PeakSampler(threading.Thread):
 
 
 class _Lines:
-    """A progress bar that prints, per scene group, the resident memory as it begins and the
-    peak of its reference and of its rounds."""
+    """A progress (harness.run.sweep.RunProgress's renderer side) that prints, per scene group,
+    the resident memory as it begins and the peak of its reference and of its rounds."""
 
     def __init__(self) -> None:
         self.sampler = _PeakSampler()
@@ -60,25 +60,25 @@ class _Lines:
         self.group, self.phase = None, None
         self.peaks: dict[str, dict[str, float]] = {}
 
-    def set_description_str(self, text: str) -> None:
-        group, _, phase = text.rpartition(": ")
-        phase = "reference" if phase == "reference" else "rounds"
-        if (group, phase) == (self.group, self.phase):
-            return
+    def stage(self, text: str) -> None:
         self.close_phase()
-        if group != self.group:
-            self.peaks[group] = {"start": resident_bytes() / MIB}
-        self.group, self.phase = group, phase
+        self.group, self.phase = text, None
+        self.peaks[text] = {"start": resident_bytes() / MIB}
+
+    def status(self, text: str) -> None:
+        self.close_phase()
+        self.phase = "reference" if text == "reference" else "rounds"
 
     def close_phase(self) -> None:
         peak = self.sampler.take() / MIB
-        if self.group is not None:
-            group = self.peaks[self.group]
-            group[self.phase] = max(group.get(self.phase, 0), peak)
-            if self.phase == "rounds":
-                print(f"{self.group:32s} {group['start']:7.0f} MiB as it begins, reference peak "
-                      f"{group.get('reference', 0):7.0f}, rounds peak {group['rounds']:7.0f} MiB",
-                      flush=True)
+        if self.group is None or self.phase is None:
+            return
+        group = self.peaks[self.group]
+        group[self.phase] = max(group.get(self.phase, 0), peak)
+        if self.phase == "rounds":
+            print(f"{self.group:32s} {group['start']:7.0f} MiB as it begins, reference peak "
+                  f"{group.get('reference', 0):7.0f}, rounds peak {group['rounds']:7.0f} MiB",
+                  flush=True)
 
     def frame_done(self, specs) -> None:
         pass

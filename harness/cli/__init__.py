@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..config import ConfigError, shipped
 from ..machine import interrupt, warnings_log
-from ..machine.timing import NOISY_CONTENTION, STATISTICS, too_noisy
+from ..machine.timing import STATISTICS
 # the options the commands share (tune's module imports them from there too)
 from .options import (check_out as _check_out, names as _names, scene_file,
                       scene_file_or_error as _scene_file_or_error)
@@ -73,7 +73,9 @@ def cmd_plan(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .. import results, run
+    from .. import run
+    from ..run.progress import verbosity
+    from . import summary
 
     if args.scheduler and args.executor != "dask":
         raise ConfigError("--scheduler goes with --executor dask")
@@ -85,44 +87,25 @@ def cmd_run(args) -> int:
         print(note, file=sys.stderr)
     interrupt.raise_if_interrupted()
     started = time.perf_counter()
+    mode = verbosity(args.quiet, args.verbose)
     if args.executor == "dask":
         from ..run.distributed import dask_renderer
 
         # the cluster is up (or the scheduler answered) before anything is written to --out
         with dask_renderer(scheduler=args.scheduler, n_workers=args.workers,
                            platform_name=args.platform) as renderer:
-            code = run.execute(plan, args.out, platform_name=args.platform,
-                               progress=not args.quiet, renderer=renderer,
-                               retime_noisy=args.retime_noisy)
+            code = run.execute(plan, args.out, platform_name=args.platform, progress=mode,
+                               renderer=renderer, retime_noisy=args.retime_noisy)
     else:
-        code = run.execute(plan, args.out, platform_name=args.platform,
-                           progress=not args.quiet, retime_noisy=args.retime_noisy)
-    rows = [r for r in results.read_rows(args.out)]
-    ids = {r.run_id for r in plan.runs}
-    mine = [r for r in rows if r["run_id"] in ids]
-    counts = {s: sum(r["status"] == s for r in mine) for s in ("ok", "skipped", "error")}
-    rendered = run.read_manifest(Path(args.out))["invocations"][-1]["runs_rendered"]
-    print(f"{len(mine)} runs in {args.out}/results.csv ({counts['ok']} ok, {counts['skipped']} "
-          f"skipped, {counts['error']} failed; {rendered} rendered now, "
-          f"{len(mine) - rendered} already done) in {time.perf_counter() - started:.1f} s",
-          file=sys.stderr)
-    timed = [r for r in mine if r["status"] == "ok" and r.get("noisy", "") != ""]
-    noisy = sum(r["noisy"] == "1" for r in timed)
-    if too_noisy(noisy, len(timed)):
-        print(f"warning: {noisy} of {len(timed)} runs are noisy (other processes used more than "
-              f"{NOISY_CONTENTION:.0%} of the CPU while they were timed: cpu_contention); their "
-              f"times are inflated: run again on a quiet machine, or add --retime-noisy",
-              file=sys.stderr)
-    for r in mine:
-        if r["status"] == "error":
-            print(f"  failed: {r['scene']} {r['technique']} {r['params']}: {r['error']}",
-                  file=sys.stderr)
+        code = run.execute(plan, args.out, platform_name=args.platform, progress=mode,
+                           retime_noisy=args.retime_noisy)
+    summary.print_run(plan, Path(args.out), time.perf_counter() - started)
     if args.report:
         from ..report import build_report
 
-        print(f"report: {build_report(args.out).resolve()}", file=sys.stderr)
+        print(f"report: {build_report(args.out, progress=mode).resolve()}", flush=True)
     else:
-        print(f"the report: shadowbench report {args.out}", file=sys.stderr)
+        print(f"the report: shadowbench report {args.out}", flush=True)
     return code
 
 
@@ -134,6 +117,7 @@ def cmd_reference(args) -> int:
     from ..truth.reference import compute_reference
     from ..report import visibility_png
     from ..results import inside, save_arrays
+    from ..run.progress import Progress, verbosity
     from ..run.store import exclusive, reference_array_path
     from ..scene import load_scene
 
@@ -153,7 +137,14 @@ def cmd_reference(args) -> int:
     if args.resolution:
         scene = scene.with_resolution(*args.resolution)
     interrupt.raise_if_interrupted()
-    ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
+    progress = Progress(1, unit="reference", mode=verbosity(args.quiet, args.verbose))
+    progress.stage(f"{scene.name} {scene.width}x{scene.height}: {args.samples} samples")
+    progress.status("tracing")
+    try:
+        ref = compute_reference(scene, samples=args.samples, use_cache=not args.no_cache)
+        progress.step(f"{scene.name}: {'cached' if ref.cached else f'{ref.seconds:.2f} s'}")
+    finally:
+        progress.close()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with exclusive(out):
@@ -170,8 +161,9 @@ def cmd_reference(args) -> int:
 
 def cmd_report(args) -> int:
     from ..report import build_report
+    from ..run.progress import verbosity
 
-    print(build_report(args.dir).resolve())
+    print(build_report(args.dir, progress=verbosity(args.quiet, args.verbose)).resolve())
     return 0
 
 
@@ -193,6 +185,13 @@ def cmd_compare(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="shadowbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
+
+    def output_options(q):
+        """How a long command shows its progress on stderr (its result goes to stdout)."""
+        shown = q.add_mutually_exclusive_group()
+        shown.add_argument("--quiet", action="store_true",
+                           help="no progress: errors and the summary only")
+        shown.add_argument("--verbose", action="store_true", help="a line for each run")
 
     def scene_file_option(q):
         q.add_argument("--scene-file", default=None,
@@ -252,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "(one thread each; default 2)")
     q.add_argument("--retime-noisy", action="store_true",
                    help="then measure again the runs timed while the machine was busy")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    output_options(q)
     q.add_argument("--report", action="store_true", help="build DIR/index.html at the end")
     q.set_defaults(func=cmd_run)
 
@@ -267,10 +266,12 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--samples", type=int, default=16, help="samples per pixel (a square)")
     q.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
     q.add_argument("--no-cache", action="store_true")
+    output_options(q)
     q.set_defaults(func=cmd_reference)
 
     q = sub.add_parser("report", help="build DIR/index.html from stored results")
     q.add_argument("dir")
+    output_options(q)
     q.set_defaults(func=cmd_report)
 
     q = sub.add_parser("compare", help="what changed from results folder BEFORE to AFTER, run by "

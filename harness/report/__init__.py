@@ -40,6 +40,7 @@ from pathlib import Path
 from .. import analysis
 from ..analysis import tuning as tuned_runs  # not .tuning, this package's own view
 from ..machine import warnings_log
+from ..run.progress import QUIET, Progress
 from ..technique import registry
 from . import images, overview, plots
 from .scale import scale_view
@@ -59,11 +60,13 @@ def visibility_png(v, covered, path: Path) -> None:
     images.write_png(images.visibility(v, covered), images.VISIBILITY, Path(path))
 
 
-def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Path:
+def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX,
+                 progress: str = QUIET) -> Path:
     """Write ``out_dir/index.html`` (and its native-size images) from the stored results;
     returns its path. ``shown_px``: the longer side of an image as the page shows it (larger
-    images also get a native-size file). ConfigError when the folder holds no results
-    (``stored.read_results``)."""
+    images also get a native-size file). ``progress``: the mode of the scene sections'
+    progress on stderr (``harness.run.progress``; none by default). ConfigError when the
+    folder holds no results (``stored.read_results``)."""
     folder = Folder(out_dir)
     everything = folder.rows()
     meta = folder.manifest()
@@ -85,6 +88,9 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
                    colours, (described.get(name) or {}).get("description"), shown_px)
             for name in dict.fromkeys(shown["scene"])}
     workers = min(len(jobs), _cpus())
+    shown_progress = Progress(len(jobs), unit="scene", mode=progress)
+    shown_progress.stage(f"{out_dir}: {len(shown)} runs, images of {len(jobs)} scenes on "
+                         f"{workers} worker{'s' * (workers > 1)}")
     # one worker: a thread of this process, which a 2-second process start would not repay
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) \
             if workers > 1 else ThreadPoolExecutor(1) as pool:
@@ -96,6 +102,7 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
         page = dict(
             folder=str(out_dir), meta=meta,
             caveat=overview.caveat(meta, everything), counts=overview.counts(shown, current),
+            experiments=overview.experiments(meta),
             hidden=len(everything) - len(shown),
             verdicts=overview.verdicts(current, shown, colours), colours=colours,
             defaults_verdicts=overview.verdicts(defaults, shown, colours) if tuned else None,
@@ -105,11 +112,15 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX) -> Pat
                              registry.rivals(set(current["technique"]))),
             theta=plots.theta(current, colours), papers=papers_link(folder.root))
         scenes, caught = [], []
-        for name in jobs:
-            section, notes, lines = pending[name].result()
-            scenes.append(section)
-            folder.notes.extend(notes)
-            caught += lines
+        try:
+            for name in jobs:
+                section, notes, lines = pending[name].result()
+                scenes.append(section)
+                folder.notes.extend(notes)
+                caught += lines
+                shown_progress.step(f"{name}: {len(section['runs'])} runs")
+        finally:
+            shown_progress.close()
     # what the worker processes warned: into DIR/warnings.log as the command's own warnings
     warnings_log.append(folder.root, caught)
     return write_page(folder.root / "index.html", render(

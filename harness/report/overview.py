@@ -24,6 +24,16 @@ def caveat(meta: dict, rows) -> str:
     return f"Rendered by {renderer}" + (f"; times from {timer} timers." if timer else ".")
 
 
+def experiments(meta: dict) -> list[str]:
+    """The experiments run into the folder, each as ``path (hash)``: the manifest's
+    ``experiments`` (every one kept as runs were added), else its latest."""
+    listed = meta.get("experiments")
+    if not isinstance(listed, list) or not listed:
+        listed = [meta]
+    return [f"{e.get('experiment') or '?'} ({e.get('experiment_hash') or '?'})"
+            for e in listed if isinstance(e, dict)] or ["?"]
+
+
 def counts(shown, current) -> dict:
     """Runs shown, ok, failed, skipped and noisy (timed with other processes busy)."""
     timed = current[plots.has_number(current, "noisy")]

@@ -2,6 +2,7 @@
 
 plan      experiment, scene file, command line -> validated runs (RunSpec) and scenes (Plan)
 sweep     the resumable loop over a plan's pending runs, serial or through a renderer hook
+progress  a long command's progress on stderr: a bar on a terminal, plain lines in a log
 manifest  DIR/manifest.json: what produced DIR and how each invocation ended
 measure   prepared batches, interleaved timing rounds, moving sequences
 score     truth, metric, cost and timing columns, the arrays a run stores

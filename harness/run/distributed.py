@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..config import ConfigError
-from ..machine.interrupt import deferred
+from ..machine.interrupt import deferred, finishing, raise_if_interrupted
 from . import Plan, RunSpec, record_run
 from .measure import return_freed_memory
 
@@ -151,14 +151,15 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
                                      **options)
                        for specs in tasks]
             specs_of = {f.key: specs for f, specs in zip(futures, tasks)}
-            bar.set_description_str(f"{len(client.scheduler_info()['workers'])} Dask workers")
+            bar.stage(f"{len(tasks)} tasks on {len(client.scheduler_info()['workers'])} "
+                      "Dask workers")
             for future in as_completed(futures):
                 finished, reference = future.result()
-                for spec, (row, arrays) in zip(specs_of[future.key], finished):
-                    record_run(out_dir, spec, row, arrays, reference)
-                    bar.set_description_str(f"{spec.scene} {spec.width}x{spec.height}: "
-                                            f"{spec.technique} ({row['worker']})")
-                    yield spec, row
+                with finishing():  # a task's runs are all done: each stored even on Ctrl-C
+                    for spec, (row, arrays) in zip(specs_of[future.key], finished):
+                        record_run(out_dir, spec, row, arrays, reference)
+                        yield spec, row
+                raise_if_interrupted()
 
         yield render
     finally:

@@ -121,24 +121,43 @@ def _not_a_manifest(path: Path) -> cfg.ConfigError:
                            "file away")
 
 
+def _finished(invocations: list[dict]) -> str | None:
+    """When DIR's runs were last added to, once the latest invocation has completed: the end
+    of the last invocation that rendered something (a rerun with nothing left to render
+    leaves it as it was); None while the latest has not completed."""
+    if invocations[-1].get("status") != "complete":
+        return None
+    worked = [i["finished"] for i in invocations
+              if (i.get("runs_rendered") or i.get("runs_retimed")) and i.get("finished")]
+    return worked[-1] if worked else invocations[-1].get("finished")
+
+
 # Kept free while a sweep runs, so that its manifest can still say how it ended on a full disk.
 SPACE_RESERVE = ".space-reserve"
 SPACE_RESERVE_BYTES = 1 << 16
 
 
 def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
-    """Record what produced DIR. ``started`` is the first invocation of this experiment into
-    DIR, ``finished`` the end of the invocation that completed it (None until one does);
-    ``invocations`` lists every start with how many runs it rendered and how it ended (one
-    still ``running`` in the manifest when another starts was killed: ``interrupted``).
+    """Record what produced DIR, merged into what DIR's manifest holds already: every
+    invocation into DIR is kept, whatever experiment or scenes it ran (one still ``running``
+    when another starts was killed: ``interrupted``), with its experiment, scenes, runs and
+    notes; ``scenes`` keeps every scene's description (this plan's replacing its own);
+    ``experiments`` lists each experiment run into DIR. ``started`` is the first invocation's
+    start, ``finished`` as :func:`_finished` says; ``experiment``, ``experiment_hash``, ``cost``,
+    ``runs_planned`` and the machine's description are the latest invocation's.
     When the disk is full, the space reserve is given up to write it."""
     previous = read_manifest(out_dir)
-    same = previous.get("experiment_hash") == plan.experiment_hash
     earlier = [dict(i, status="interrupted") if i.get("status") == "running" else i
-               for i in (previous.get("invocations", []) if same else [])
-               if i.get("id") != session["id"]]
+               for i in previous.get("invocations", []) if i.get("id") != session["id"]]
     invocations = earlier + [session]
-    complete = session["status"] == "complete"
+    scenes = previous.get("scenes") if isinstance(previous.get("scenes"), dict) else {}
+    scenes = {**scenes, **{name: {"description": scene.config.description,
+                                  "effects": list(scene.config.effects),
+                                  "meshes": _meshes(scene)}
+                           for name, scene in plan.scenes.items()}}
+    experiment = {"experiment": plan.experiment_path, "experiment_hash": plan.experiment_hash}
+    experiments = [e for e in previous.get("experiments", []) if isinstance(e, dict)
+                   and e != experiment] + [experiment]
     counters_missing = pass_measure.pipeline_statistics_missing()
     manifest = {
         "shadowbench": _version(registry.own_distribution()),
@@ -164,12 +183,10 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
         "experiment_hash": plan.experiment_hash,
         "cost": plan.cost,
         "runs_planned": len(plan.runs),
-        "scenes": {name: {"description": scene.config.description,
-                          "effects": list(scene.config.effects), "meshes": _meshes(scene)}
-                   for name, scene in plan.scenes.items()},
-        "started": invocations[0]["started"],
-        "finished": (previous.get("finished") if same and previous.get("finished")
-                     else session["finished"] if complete else None),
+        "experiments": experiments,
+        "scenes": scenes,
+        "started": invocations[0].get("started") or session["started"],
+        "finished": _finished(invocations),
         "status": session["status"],
         "invocations": invocations,
     }

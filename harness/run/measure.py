@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..technique import registry
+from ..machine import interrupt
 from ..machine.timing import cpu_sample, others_time
 from .plan import RunSpec
 from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one_line, score_run,
@@ -227,35 +228,53 @@ def _batches(specs: list[RunSpec], start):
         yield failed, batch
 
 
-def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
-              renderer: str, on_frame=None):
-    """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
-    interleaved rounds; yields ``(spec, row, arrays)`` as each run finishes (arrays None
-    unless it ran). Never raises for a technique's failure: that is the row's status.
-
-    On a moving scene (``frame.frames`` > 1, ``reference`` its frame 0's) each round is a
-    frame of the sequence: :func:`_run_sequence`, which calls ``on_frame(specs)`` with the
-    runs that rendered it as each frame ends (for the progress bar's estimate)."""
-    def start(spec):
-        return _start(spec, frame, first_columns(spec, reference, scene_ms, frags_scene,
-                                                  renderer))
-
-    if frame.frames > 1:
-        yield from _run_sequence(_batches(specs, start), frame, on_frame or (lambda specs: None))
+def _finish(done: list[_Timed], score):
+    """The runs whose frames are done (or that failed), released and scored (``score(timed)``
+    -> ``(row, arrays)``), yielded as ``(spec, row, arrays)`` within ``interrupt.finishing``:
+    a Ctrl-C meanwhile waits until the consumer has stored every one of them, and is raised
+    after the last."""
+    if not done:
         return
-    for failed, batch in _batches(specs, start):
-        for timed in failed:
-            yield timed.spec, timed.row, None
-        turn = 0
-        while live := [t for t in batch if t.alive and t.measured < t.spec.frames]:
-            _measure_round(live, frame, turn)
-            turn += 1
-        for timed in batch:
+    with interrupt.finishing():
+        for timed in done:
             if not timed.alive:
                 yield timed.spec, timed.row, None
                 continue
             _release(timed)
-            yield (timed.spec, *score_run(timed, frame, reference))
+            yield (timed.spec, *score(timed))
+    interrupt.raise_if_interrupted()
+
+
+def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_scene: int,
+              renderer: str, on_frame=None):
+    """Run ``specs`` (one scene and resolution, ``frame`` prepared for it) in batches of
+    interleaved rounds; yields ``(spec, row, arrays)`` for each run as soon as its frames are
+    done (arrays None unless it ran), before the next round: runs of one batch finish at the
+    same round, a run that fails at the round it fails. Never raises for a technique's
+    failure: that is the row's status. ``on_frame(specs)`` is called as each round ends,
+    with the runs that rendered it (for the progress's estimate).
+
+    On a moving scene (``frame.frames`` > 1, ``reference`` its frame 0's) each round is a
+    frame of the sequence: :func:`_run_sequence`."""
+    def start(spec):
+        return _start(spec, frame, first_columns(spec, reference, scene_ms, frags_scene,
+                                                  renderer))
+
+    on_frame = on_frame or (lambda specs: None)
+    if frame.frames > 1:
+        yield from _run_sequence(_batches(specs, start), frame, on_frame)
+        return
+    for failed, batch in _batches(specs, start):
+        yield from _finish(failed, None)
+        turn, waiting = 0, list(batch)
+        while waiting:
+            if live := [t for t in waiting if t.alive and t.measured < t.spec.frames]:
+                _measure_round(live, frame, turn)
+                turn += 1
+                on_frame([t.spec for t in live])
+            done = [t for t in waiting if not t.alive or t.measured >= t.spec.frames]
+            waiting = [t for t in waiting if t not in done]
+            yield from _finish(done, lambda timed: score_run(timed, frame, reference))
 
 
 def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
@@ -271,16 +290,16 @@ def run_one(spec: RunSpec, frame, reference, scene_ms: float, frags_scene: int,
 def _run_sequence(batches, frame, on_frame):
     """Runs on a moving scene (``frame`` at its frame 0), batch by batch: each batch goes
     through the sequence, one interleaved round per frame (each technique's frame as its cost
-    policy has it, measured), and each run's frame is scored as it is rendered against that frame's
-    reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run."""
+    policy has it, measured), and each run's frame is scored as it is rendered against that
+    frame's reference (from the cache, or traced); yields ``(spec, row, arrays)`` per run, a
+    failed one after the frame it failed in, the others after the last frame."""
     from ..truth.reference import compute_reference
 
     for failed, batch in batches:
-        for timed in failed:
-            yield timed.spec, timed.row, None
-        previous, traced_s = None, 0.0
+        yield from _finish(failed, None)
+        previous, traced_s, waiting = None, 0.0, list(batch)
         for t in range(frame.frames):
-            if not any(timed.alive for timed in batch):
+            if not waiting:
                 break
             spec = batch[0].spec
             try:
@@ -288,26 +307,26 @@ def _run_sequence(batches, frame, on_frame):
                 reference = compute_reference(frame.scene, samples=spec.samples,
                                               seed=spec.ref_seed)
             except Exception as e:  # Mitsuba or GL cannot take this frame: the runs fail
-                for timed in batch:
-                    if timed.alive:
-                        timed.row.update(status="error", error=f"scene {spec.scene} frame {t}: "
-                                                               f"{one_line(e)}")
-                        _release(timed)
+                for timed in waiting:
+                    timed.row.update(status="error", error=f"scene {spec.scene} frame {t}: "
+                                                           f"{one_line(e)}")
+                    _release(timed)
                 break
             traced_s += reference.seconds
             truth = FrameTruth(t, reference, frame.compared_pixels(reference.covered))
-            live = [timed for timed in batch if timed.alive]
-            _measure_round(live, frame, t)
-            for timed in live:
+            _measure_round(waiting, frame, t)
+            for timed in waiting:
                 if timed.alive:
                     _attempt(timed, observe_frame, timed, frame, truth, previous)
-            on_frame([timed.spec for timed in live])
+            on_frame([timed.spec for timed in waiting])
             previous = truth
-        for timed in batch:
-            if not timed.alive:
-                yield timed.spec, timed.row, None
-                continue
-            _release(timed)
+            failed_now = [timed for timed in waiting if not timed.alive]
+            waiting = [timed for timed in waiting if timed.alive]
+            yield from _finish(failed_now, None)
+
+        def score(timed):
             timed.row["ref_seconds"] = traced_s
-            yield (timed.spec, *sequence_score(timed, frame))
+            return sequence_score(timed, frame)
+
+        yield from _finish(waiting, score)
         frame.move_to(0)  # the next batch warms up at frame 0

@@ -4,8 +4,6 @@ harness.run.distributed's on Dask) that measures, scores and stores them; progre
 from __future__ import annotations
 
 import os
-import sys
-import time
 from pathlib import Path
 
 from .. import results
@@ -13,10 +11,9 @@ from ..config.cache_entry import take_rebuilt_notes
 from .manifest import MANIFEST_FILE, SPACE_RESERVE, SPACE_RESERVE_BYTES, read_manifest, write_manifest
 from .measure import return_freed_memory, run_group
 from .plan import Plan, RunSpec
+from .progress import NORMAL, QUIET, Progress
 from .score import failed_scene_row
 from .store import exclusive, record_run, utc_now
-
-PROGRESS_FORMAT = "{desc} | {n_fmt}/{total_fmt} runs done{postfix} | {elapsed} elapsed"
 
 
 def _frame_cost(spec: RunSpec) -> float:
@@ -32,51 +29,47 @@ def _cost(spec: RunSpec) -> float:
     return _frame_cost(spec) * (spec.frames + spec.warmup)
 
 
-class _Progress:
-    """The progress bar and its estimate of the time left, from the cost done so far: runs
-    finished and, on moving scenes, each frame as its round ends (a 1000-frame run has an
-    estimate after its first frame, not only when it ends). Renderers get it as their bar."""
+def _changed_params(spec: RunSpec) -> str:
+    """``res=512 k=4``: the run's parameters that differ from its technique's defaults."""
+    from ..technique import registry
 
-    REFRESH_S = 1.0  # per-frame updates redraw the bar at most this often
+    try:
+        defaults = registry.get(spec.technique).Params().model_dump(mode="json")
+    except Exception:  # a technique that cannot say its defaults: every parameter
+        defaults = {}
+    return " ".join(f"{k}={v}" for k, v in spec.params.items() if defaults.get(k, ...) != v)
 
-    def __init__(self, bar, pending: list[RunSpec]):
-        self.bar, self.failed = bar, 0
-        self.left, self.done = float(sum(map(_cost, pending))), 0.0
+
+def _run_line(spec: RunSpec, row: dict) -> str:
+    """A stored run as ``--verbose`` shows it: scene, size, technique, its changed parameters,
+    then its median time, or its status and error."""
+    status = row["status"]
+    how = (f"{row['time_ms']:.4g} ms" if status == "ok" and row.get("time_ms") is not None
+           else f"{status}: {row.get('error', '')}" if status != "ok" else status)
+    where = f" ({row['worker']})" if row.get("worker") else ""  # a Dask worker's run
+    label = " ".join(filter(None, (spec.technique, _changed_params(spec))))
+    return f"{spec.scene} {spec.width}x{spec.height} {label}: {how}{where}"
+
+
+class RunProgress(Progress):
+    """The sweep's progress: its steps the runs, its work their frames (``_cost``), counted as
+    each round ends (a 1000-frame run has an estimate after its first frame, not only when it
+    ends) and as each run is stored. Renderers get it as their ``bar``: ``stage`` as a scene's
+    group begins, ``status`` for what the group does, ``frame_done`` after each round."""
+
+    def __init__(self, total: int, pending: list[RunSpec], **options):
+        super().__init__(total, done=total - len(pending), work=sum(map(_cost, pending)),
+                         **options)
         self.counted: dict[str, float] = {}  # frames of unfinished runs already counted
-        self.clock = self.drawn = time.monotonic()
-
-    def set_description_str(self, text: str) -> None:
-        self.bar.set_description_str(text)
 
     def frame_done(self, specs: list[RunSpec]) -> None:
         for spec in specs:
-            self._advance(_frame_cost(spec))
             self.counted[spec.run_id] = self.counted.get(spec.run_id, 0.0) + _frame_cost(spec)
-        self._show(runs_left=self.bar.total - self.bar.n)
-        if time.monotonic() - self.drawn >= self.REFRESH_S:
-            self.bar.refresh()
-            self.drawn = time.monotonic()
+        self.advance(sum(map(_frame_cost, specs)))
 
     def run_done(self, spec: RunSpec, row: dict) -> None:
-        self.failed += row["status"] == "error"
-        self._advance(_cost(spec) - self.counted.pop(spec.run_id, 0.0))
-        self._show(runs_left=self.bar.total - self.bar.n - 1)
-        self.bar.update(1)
-
-    def _advance(self, cost: float) -> None:
-        self.done += cost
-        self.left -= cost
-
-    def _show(self, runs_left: int) -> None:
-        self.bar.set_postfix_str(
-            f"{runs_left} to go" + (f", {self.failed} failed" if self.failed else "")
-            + (f", {_time_left(time.monotonic() - self.clock, self.done, self.left)}"
-               if runs_left and self.done else ""), refresh=False)
-
-
-def _time_left(elapsed_s: float, done: float, left: float) -> str:
-    seconds = round(elapsed_s / done * max(left, 0.0))
-    return f"about {seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d} left"
+        self.step(_run_line(spec, row), work=_cost(spec) - self.counted.pop(spec.run_id, 0.0),
+                  failed=row["status"] == "error")
 
 
 def noisy_runs(plan: Plan, out_dir: str | Path) -> list[RunSpec]:
@@ -87,8 +80,10 @@ def noisy_runs(plan: Plan, out_dir: str | Path) -> list[RunSpec]:
 
 
 def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None,
-            progress: bool = True, renderer=None, retime_noisy: bool = False) -> int:
+            progress: bool | str = True, renderer=None, retime_noisy: bool = False) -> int:
     """Run every pending run of the plan; returns the exit code (0 ok, 1 some failed).
+    ``progress``: a mode of :mod:`harness.run.progress` (quiet, normal, verbose), or a bool
+    (normal or quiet).
 
     ``retime_noisy``: then measure again the runs whose row says ``noisy`` (rendered anew, in
     interleaved rounds among themselves; their rows are replaced: the technique's output is
@@ -96,16 +91,18 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
 
     ``renderer(plan, pending, out_dir, context, bar)`` renders and records the pending runs,
     yielding ``(spec, row)`` as each is recorded: :func:`render_serial` (the default) in this
-    process, or ``harness.run.distributed.dask_renderer(...)`` on a Dask cluster.
+    process, or ``harness.run.distributed.dask_renderer(...)`` on a Dask cluster. ``bar`` is
+    the :class:`RunProgress`.
 
-    Each finished run's row is appended by replacing results.csv whole, so SIGKILL or Ctrl-C
-    at any moment leaves every finished run recorded once and no partial row; the next call
-    with the same plan skips them. Arrays are written before their row: a kill between the two
-    leaves an unreferenced array that the rerun overwrites. The next call also heals what a
-    kill leaves: it removes temporary files, marks the killed invocation ``interrupted``, and
-    renders again the runs whose stored arrays are missing or damaged."""
-    from tqdm import tqdm
-
+    Each run is stored as soon as its frames are done (with the others of its round: runs
+    interleaved in one batch finish together), its row appended by replacing results.csv
+    whole, so SIGKILL at any moment leaves every stored run recorded once and no partial row,
+    and Ctrl-C waits until the runs whose frames are done are stored
+    (``interrupt.finishing``); the next call with the same plan skips them. Arrays are
+    written before their row: a kill between the two leaves an unreferenced array that the
+    rerun overwrites. The next call also heals what a kill leaves: it removes temporary
+    files, marks the killed invocation ``interrupted``, and renders again the runs whose
+    stored arrays are missing or damaged."""
     from ..machine.interrupt import raise_if_interrupted
 
     renderer = renderer or render_serial
@@ -124,32 +121,37 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
         context = get_context(platform_name)
         # the id tells this invocation's entry from others started in the same second
         session = {"id": os.urandom(4).hex(), "started": utc_now(), "finished": None,
-                   "status": "running", "runs_pending": len(pending), "runs_rendered": 0,
+                   "status": "running", "experiment": plan.experiment_path,
+                   "experiment_hash": plan.experiment_hash, "scenes": list(plan.scenes),
+                   "runs_planned": len(plan.runs), "runs_pending": len(pending),
+                   "runs_rendered": 0,
                    # one line per damaged cache entry built again, planning's included
                    "notes": take_rebuilt_notes()}
         results.replace_atomically(out_dir / SPACE_RESERVE,
                                    lambda f: f.write(bytes(SPACE_RESERVE_BYTES)))
         write_manifest(out_dir, plan, context, session)
-        bar = tqdm(total=len(plan.runs), initial=len(plan.runs) - len(pending), unit="run",
-                   disable=not progress, file=sys.stderr, dynamic_ncols=True,
-                   bar_format=PROGRESS_FORMAT, postfix=f"{len(pending)} to go",
-                   desc="" if pending else "nothing to render")
-        progress = _Progress(bar, pending)
+        mode = progress if isinstance(progress, str) else NORMAL if progress else QUIET
+        bar = RunProgress(len(plan.runs), pending, mode=mode)
+        if not pending:
+            bar.stage("nothing to render")
+        runs = None
         try:
-            for spec, row in renderer(plan, pending, out_dir, context, progress):
-                raise_if_interrupted()
+            runs = renderer(plan, pending, out_dir, context, bar)
+            for spec, row in runs:
                 session["notes"] += take_rebuilt_notes()
                 session["runs_rendered"] += 1
                 failed += row["status"] == "error"
-                progress.run_done(spec, row)
+                bar.run_done(spec, row)
+                raise_if_interrupted()  # a library may have swallowed Ctrl-C: stop here
             if retime_noisy:
                 again = noisy_runs(plan, out_dir)
                 session["runs_retimed"] = len(again)
-                bar.reset(total=len(again))
-                bar.set_postfix_str("retiming the noisy runs", refresh=False)
-                for _, row in renderer(plan, again, out_dir, context, bar):
+                bar.reset(len(again), sum(map(_cost, again)), stage="retiming the noisy runs")
+                runs = renderer(plan, again, out_dir, context, bar)
+                for spec, row in runs:
                     failed += row["status"] == "error"
-                    bar.update(1)
+                    bar.run_done(spec, row)
+                    raise_if_interrupted()
             session["status"] = "complete"
         except KeyboardInterrupt:
             session["status"] = "interrupted"
@@ -158,6 +160,8 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
             session["status"] = "failed"
             raise
         finally:
+            if hasattr(runs, "close"):
+                runs.close()  # the renderer's own clean-up (its frame released) comes first
             bar.close()
             session["notes"] += take_rebuilt_notes()
             session["finished"] = utc_now()
@@ -168,9 +172,9 @@ def execute(plan: Plan, out_dir: str | Path, *, platform_name: str | None = None
 
 def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, bar):
     """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
-    shared, its runs measured in interleaved rounds: :func:`run_group`), appending each row
-    as it finishes; yields (spec, row) for each. A scene whose reference or frame fails gives
-    its runs error rows, and the sweep goes on."""
+    shared, its runs measured in interleaved rounds: :func:`run_group`), storing each run as
+    its frames are done; yields (spec, row) for each. A scene whose reference or frame fails
+    gives its runs error rows, and the sweep goes on."""
     from ..truth.reference import compute_reference
     from ..technique import Frame
 
@@ -180,7 +184,8 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
                           []).append(spec)
     for (scene_name, width, height, samples, ref_seed), specs in groups.items():
         scene = plan.scenes[scene_name].with_resolution(width, height)
-        bar.set_description_str(f"{scene_name} {width}x{height}: reference")
+        bar.stage(f"{scene_name} {width}x{height}: {len(specs)} run{'s' * (len(specs) > 1)}")
+        bar.status("reference")
         frame = None
         try:
             reference = compute_reference(scene.at_frame(0), samples=samples, seed=ref_seed)
@@ -195,15 +200,15 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
                 record_run(out_dir, spec, row, None, None)
                 yield spec, row
             continue
+        bar.status("interleaved rounds")
+        rounds = run_group(specs, frame, reference, scene_ms, frags_scene, context.renderer,
+                           on_frame=getattr(bar, "frame_done", None))
         try:
-            bar.set_description_str(f"{scene_name} {width}x{height}: {len(specs)} runs in rounds")
-            for spec, row, arrays in run_group(specs, frame, reference, scene_ms, frags_scene,
-                                               context.renderer,
-                                               on_frame=getattr(bar, "frame_done", None)):
-                bar.set_description_str(f"{scene_name} {width}x{height}: {spec.technique}")
+            for spec, row, arrays in rounds:  # within interrupt.finishing: stored at once
                 record_run(out_dir, spec, row, arrays, reference)
                 yield spec, row
         finally:
+            rounds.close()  # leaves interrupt.finishing if a consumer stopped inside it
             frame.release()
             del frame, reference
             return_freed_memory()  # what the group left behind, before the next scene

@@ -96,7 +96,7 @@ def test_a_failing_technique_writes_an_error_row_and_exit_1(small_scene_file, tm
     assert rows["broken"]["status"] == "error"
     assert "does-not-exist.frag.glsl" in rows["broken"]["error"]
     assert "\n" not in rows["broken"]["error"]
-    assert "failed: box_plane broken" in capsys.readouterr().err
+    assert "failed: box_plane broken" in capsys.readouterr().out  # the summary: stdout
 
 
 def test_list_names_techniques_and_scenes(capsys):

@@ -388,7 +388,7 @@ def test_moving_runs_resume_like_still_ones(small_scene_file, tmp_path, gl_conte
     results.write_rows(out, kept)
     capsys.readouterr()
     assert cli.main(args) == 0
-    assert "1 rendered now, 3 already done" in capsys.readouterr().err
+    assert "1 rendered now, 3 already done" in capsys.readouterr().out
     again = {(r["scene"], r["technique"]): r for r in result_rows(out)}[("box_orbit", "sm")]
     assert again["run_id"] == orbit["run_id"]
     for column in ("mae", "mae_max", "flicker", "flicker_max", "pop_frames", "worst_frame"):

@@ -47,8 +47,9 @@ def test_a_scene_that_fails_mid_sweep_gives_error_rows_and_the_sweep_goes_on(
     monkeypatch.setattr(reference, "compute_reference", compute_reference)
     scene_file = write_scenes(tmp_path, {"bad": GOOD, "good": GOOD})
     out = tmp_path / "out"
-    code, err = run_cli(["run", "--scene-file", scene_file, "--techniques", "sm,pcf", "--out",
-                         out, "--quiet"], capsys)
+    code = cli.main(["run", "--scene-file", str(scene_file), "--techniques", "sm,pcf", "--out",
+                     str(out), "--quiet"])
+    summary = capsys.readouterr().out.splitlines()
     assert code == 1
     status = {(r["scene"], r["technique"]): (r["status"], r["error"]) for r in result_rows(out)}
     assert status[("good", "sm")] == ("ok", "") and status[("good", "pcf")] == ("ok", "")
@@ -56,7 +57,7 @@ def test_a_scene_that_fails_mid_sweep_gives_error_rows_and_the_sweep_goes_on(
         state, error = status[("bad", technique)]
         assert state == "error" and "Mitsuba cannot trace this scene" in error
     assert json.loads((out / "manifest.json").read_text())["status"] == "complete"
-    assert any("failed: bad sm" in line for line in err)
+    assert any("failed: bad sm" in line for line in summary)
     # a rerun retries the failed scene: it traces now
     monkeypatch.setattr(reference, "compute_reference", traced)
     assert cli.main(["run", "--scene-file", str(scene_file), "--techniques", "sm,pcf",
@@ -285,44 +286,72 @@ def test_ctrl_c_stops_a_library_that_never_lets_go(tmp_path):
     assert err[-1] == interrupt.MESSAGE
 
 
-class _FakeBar:
-    def __init__(self, total: int):
-        self.total, self.n, self.postfix, self.refreshed = total, 0, "", 0
+def test_ctrl_c_keeps_every_run_whose_frames_are_done_and_a_rerun_does_the_rest(tmp_path):
+    """Issue 47, friction 5: a real run of two scenes of six runs, SIGINT as soon as the first
+    row is stored. The six runs of the first scene are interleaved in one batch and finish
+    their frames in the same round: all six are stored, whole, and the manifest counts them;
+    a rerun renders the second scene's six and leaves the first six as they were. Catches a
+    sweep that lets Ctrl-C land between the stores of runs already done (before: 1 or 2 of
+    the 6 stored, the other runs' frames thrown away)."""
+    scene_file = write_scenes(tmp_path, {"a": scene_with(resolution=[64, 64]),
+                                         "b": scene_with(resolution=[64, 64])})
+    experiment = tmp_path / "e.yaml"
+    experiment.write_text(yaml.safe_dump({
+        "techniques": {"sm": {"product": {"res": [64, 128, 256]}},
+                       "pcf": {"product": {"k": [1, 4, 9]}}},
+        "frames": 2, "warmup": 0, "reference": {"samples": 1}}))
+    out = tmp_path / "out"
+    args = ["-m", "harness.cli", "run", str(experiment), "--scene-file", str(scene_file),
+            "--out", str(out)]
+    proc = subprocess.Popen([PY, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=subprocess_env())
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and not (out / "results.csv").exists() and time.monotonic() < deadline:
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == interrupt.EXIT_CODE, err
+    assert err.splitlines()[-1] == interrupt.MESSAGE
+    stored = result_rows(out)
+    assert sorted(r["scene"] for r in stored) == ["a"] * 6, [r["technique"] for r in stored]
+    for row in stored:
+        assert row["status"] == "ok" and row["time_ms"] and row["finished_at"]
+        assert results.readable_npz(out / row["array"])
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted"
+    assert manifest["invocations"][-1]["runs_rendered"] == 6
 
-    def set_postfix_str(self, text, refresh=True):
-        self.postfix = text
-
-    def refresh(self):
-        self.refreshed += 1
-
-    def update(self, n):
-        self.n += n
-
-    def set_description_str(self, text):
-        pass
+    rerun = subprocess.run([PY, *args, "--quiet"], capture_output=True, text=True, timeout=300,
+                           env=subprocess_env())
+    assert rerun.returncode == 0, rerun.stderr
+    assert "12 runs in" in rerun.stdout and "6 rendered now, 6 already done" in rerun.stdout
+    after = {r["run_id"]: r for r in result_rows(out)}
+    assert len(after) == 12
+    assert all(after[r["run_id"]] == r for r in stored)  # not redone
 
 
 def test_a_moving_runs_estimate_comes_with_its_first_frame_and_follows_its_frames(monkeypatch):
     """Before: a 1000-frame run had no estimate until it ended (the ETA counted runs, and
     'about 0:10 left' stayed for 47 s)."""
+    import io
+
+    from harness.run import progress as shown
     from harness.run import sweep
     from harness.run.plan import RunSpec
 
     now = [100.0]
-    monkeypatch.setattr(sweep.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr(shown.time, "monotonic", lambda: now[0])
     moving = RunSpec("s", "sm", {}, 64, 64, frames=1000, warmup=0, samples=1)
     still = RunSpec("t", "sm", {}, 64, 64, frames=15, warmup=2, samples=1)
-    bar = _FakeBar(total=2)
-    progress = sweep._Progress(bar, [moving, still])
+    progress = sweep.RunProgress(2, [moving, still], stream=io.StringIO(), terminal=False)
     now[0] += 2.0
     progress.frame_done([moving])  # 1 of 1017 frames in 2 s: 2032 s left
-    assert bar.postfix == "2 to go, about 0:33:52 left"
-    assert bar.refreshed == 1
+    assert progress.postfix() == "2 to go, about 0:33:52 left"
     now[0] += 2.0
     progress.frame_done([moving])
-    assert bar.postfix == "2 to go, about 0:33:50 left"
+    assert progress.postfix() == "2 to go, about 0:33:50 left"
     progress.run_done(moving, {"status": "ok"})
-    assert (bar.n, progress.left) == (1, sweep._cost(still))
+    assert (progress.n, progress.left) == (1, sweep._cost(still))
 
 
 def test_a_moving_scene_reports_each_frame_to_the_progress(tmp_path, gl_context, monkeypatch,
@@ -331,7 +360,7 @@ def test_a_moving_scene_reports_each_frame_to_the_progress(tmp_path, gl_context,
     from harness.run import sweep
 
     frames = []
-    monkeypatch.setattr(sweep._Progress, "frame_done",
+    monkeypatch.setattr(sweep.RunProgress, "frame_done",
                         lambda self, specs: frames.append([s.technique for s in specs]))
     scene_file = write_scenes(tmp_path, {"s": {**GOOD, "motion": {"frames": 4,
                                                                   "camera_orbit": 20}}})
