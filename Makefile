@@ -46,9 +46,12 @@ plugin: setup
 	$(VENV)/bin/shadowbench list | grep -i -A1 "plugin:" || true
 
 # benchmarks run once each as plain tests here (their timings are make microbench's job)
+# Two worker processes, a test module's tests in one of them (its module fixtures built once):
+# most tests run one core at a time (Python, pandas, one GL pass), so the two cores halve it.
+TEST_WORKERS ?= 2
 test: setup
 	$(VENV)/bin/lint-imports
-	$(PY) -m pytest -q --benchmark-disable
+	$(PY) -m pytest -q --benchmark-disable -n $(TEST_WORKERS) --dist loadfile
 
 # Some failed runs (exit 1) still get their dashboard, which shows why; bad input (2) does not.
 bench: setup
