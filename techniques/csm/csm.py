@@ -164,10 +164,12 @@ class CascadedShadowMap(Technique):
     reduction over the G-buffer (fit frustum's where no pixel is covered), and each cascade
     covers, across the light, just the visible receivers of its slice, from one more
     reduction per cascade (Lauritzen et al.'s sample distribution: its depth range and tight
-    light-space bounds); otherwise a cascade covers its slice of the view frustum. ``stabilize`` fits each cascade to its slice's bounding sphere instead and
-    snaps it to whole texels (:func:`fit_cascade`): the map does not shimmer when the camera
-    moves or turns, at the price of a larger texel (under sdsm the slices still follow the
-    visible depth range). Directional lights only: a spot light has one frustum already.
+    light-space bounds); otherwise a cascade covers its slice of the view frustum.
+    ``stabilize`` fits each cascade to its slice's bounding sphere instead and snaps it to
+    whole texels (:func:`fit_cascade`): the map does not shimmer when the camera moves or
+    turns, at the price of a larger texel (under sdsm, the default, the slices still follow
+    the visible depth range, so the grid holds under fit frustum only). Directional lights
+    only: a spot light has one frustum already.
 
     Bias: ``shadow_map.glsl``'s rule (``bias`` plus ``slope_bias`` times the receiver plane's
     depth slope per texel times the distance to the texel read, and the point first moved by
