@@ -204,21 +204,23 @@ def check_vertices(vertices: np.ndarray, name: str) -> None:
     finite(vertices, lambda i: f"{name}vertex {i}")
 
 
-Parts = list[tuple[str, np.ndarray, np.ndarray]]
+Parts = list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]
 
 
 def read_parts(path, fmt: str) -> tuple[Parts, dict[str, int]]:
-    """(name, vertices (V, 3) float64, faces (F, 3) int64) of each triangle mesh the file
-    places, in its file's order, unprocessed (trimesh's processing merges and drops); and what
-    was skipped, counted by kind."""
+    """(name, vertices (V, 3) float64, faces (F, 3) int64, texture coordinates per corner
+    (F, 3, 2) or None) of each triangle mesh the file places, in its file's order, unprocessed
+    (trimesh's processing merges and drops); and what was skipped, counted by kind. Texture
+    coordinates follow glTF (v downward, harness/scene/alpha.py): an OBJ's and a PLY's v
+    (``s t``, ``u v``) flipped, a glTF's ``TEXCOORD_0`` as written."""
     import trimesh
 
     if fmt == "obj":
         return read_obj(Path(path).read_bytes())
     if fmt == "stl" and _stl_binary(data := Path(path).read_bytes()):  # no need of trimesh
         vertices = _stl_records(data)["v"].reshape(-1, 3).astype(np.float64)
-        return ([("stl", vertices, np.arange(len(vertices)).reshape(-1, 3))] if len(vertices)
-                else []), {}
+        return ([("stl", vertices, np.arange(len(vertices)).reshape(-1, 3), None)]
+                if len(vertices) else []), {}
     scene = trimesh.load(path, file_type=fmt, force="scene", process=False)
     parts, other = [], 0
     for node in scene.graph.nodes_geometry:
@@ -229,7 +231,17 @@ def read_parts(path, fmt: str) -> tuple[Parts, dict[str, int]]:
             vertices = np.asarray(mesh.vertices, dtype=np.float64)
             if not np.allclose(transform, np.eye(4)):
                 vertices = vertices @ transform[:3, :3].T + transform[:3, 3]
-            parts.append((str(node), vertices, faces))
+            parts.append((str(node), vertices, faces, _corner_uv(mesh, faces)))
         else:
             other += 1
     return parts, ({NO_TRIANGLES: other} if other else {})
+
+
+def _corner_uv(mesh, faces: np.ndarray) -> np.ndarray | None:
+    """The mesh's per-vertex texture coordinates at each face corner, v downward; None when
+    it has none. trimesh keeps v upward (it flips a glTF's on load): flipped back here."""
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is None or np.shape(uv) != (len(mesh.vertices), 2):
+        return None
+    uv = np.asarray(uv, np.float64)
+    return np.stack([uv[:, 0], 1 - uv[:, 1]], -1)[faces]
