@@ -9,6 +9,7 @@ stored, first row at the top (harness/scene/alpha.py's uv convention)."""
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 from typing import Literal, Union
 
@@ -60,6 +61,26 @@ def resolve_texture_path(scene_path: Path, texture: str) -> Path:
     return p if p.is_absolute() else Path(scene_path).parent / p
 
 
+def check_png_header(head: bytes, name: str) -> None:
+    """A ValueError unless ``head`` (a file's first 26 bytes or more) starts a PNG of at least
+    1x1 and at most MAX_TEXTURE_SIDE a side, 8 bits a channel: read from its IHDR chunk, so
+    a huge image is refused before any of it is decoded."""
+    if not head:
+        raise ValueError(f"{name}: empty file (0 bytes), not a PNG")
+    if not head.startswith(PNG_SIGNATURE):
+        raise ValueError(f"{name}: not a PNG (its first bytes are not the PNG signature)")
+    if len(head) < len(PNG_SIGNATURE) + 18 or head[12:16] != b"IHDR":
+        raise ValueError(f"{name}: not a PNG that can be read (no IHDR chunk first)")
+    width, height, depth = struct.unpack(">IIB", head[16:25])
+    if min(width, height) < 1:
+        raise ValueError(f"{name}: {width}x{height} texels, zero-sized")
+    if max(width, height) > MAX_TEXTURE_SIDE:
+        raise ValueError(f"{name}: {width}x{height} texels, over the limit of "
+                         f"{MAX_TEXTURE_SIDE}x{MAX_TEXTURE_SIDE}")
+    if depth != 8:
+        raise ValueError(f"{name}: {depth} bits a channel; an alpha texture has 8")
+
+
 def read_alpha_texture(path: Path) -> np.ndarray:
     """The alpha (or grey) channel of the PNG at ``path``, (H, W) uint8, first row at the top;
     a ValueError (an OSError for an unreadable file) saying what is wrong."""
@@ -67,20 +88,11 @@ def read_alpha_texture(path: Path) -> np.ndarray:
 
     check_regular_file(path)
     with open(path, "rb") as f:
-        head = f.read(len(PNG_SIGNATURE))
-        if not head:
-            raise ValueError(f"{path}: empty file (0 bytes), not a PNG")
-        if head != PNG_SIGNATURE:
-            raise ValueError(f"{path}: not a PNG (its first bytes are not the PNG signature)")
+        head = f.read(len(PNG_SIGNATURE) + 18)
+        check_png_header(head, str(path))
         f.seek(0)
         try:
             image = Image.open(f, formats=["PNG"])
-            width, height = image.size  # from the header: nothing decoded yet
-            if min(width, height) < 1:
-                raise ValueError(f"{path}: {width}x{height} texels, zero-sized")
-            if max(width, height) > MAX_TEXTURE_SIDE:
-                raise ValueError(f"{path}: {width}x{height} texels, over the limit of "
-                                 f"{MAX_TEXTURE_SIDE}x{MAX_TEXTURE_SIDE}")
             if image.mode not in EIGHT_BIT_MODES:
                 raise ValueError(f"{path}: a PNG of mode {image.mode}; an alpha texture has 8 "
                                  "bits a channel (grey, grey+alpha, RGB, RGBA or a palette)")

@@ -61,6 +61,10 @@ class MeshParts:
     # per part, its corners' texture coordinates (F, 3, 2) float32 (glTF's convention,
     # harness/scene/alpha.py), or None where the file gives a corner none
     texcoords: tuple[np.ndarray | None, ...] = ()
+    # the file's own cut-outs (an OBJ's map_d, a glTF's alphaMode MASK): (texture (H, W)
+    # uint8, cutoff, where from) each, and per part the index of its own or -1
+    cutouts: tuple[tuple[np.ndarray, float, str], ...] = ()
+    part_cutouts: tuple[int, ...] = ()
 
     @property
     def triangles(self) -> int:
@@ -147,7 +151,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
         note = skipped_note(skipped)
         raise ValueError("no triangle left" + (f" ({note})" if note else ""))
     names, vertices, faces, closed, texcoords, dropped, total = [], [], [], [], [], 0, 0
-    for name, v, f, uv in found:
+    cutouts, part_cutouts = {}, []
+    for name, v, f, uv, cutout in found:
         where = f"part {name!r}: " if len(found) > 1 else ""
         if fmt != "obj":  # an OBJ's numbers were checked by line
             check_vertices(v, where)
@@ -165,6 +170,12 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
         if good.any():
             f = f[good].astype(np.int32)
             texcoords.append(None if uv is None else uv[good].astype(np.float32))
+            if cutout is not None and uv is None:
+                raise ValueError(f"{where}{cutout[2]} cuts it out, and it has no texture "
+                                 "coordinates")
+            if cutout is not None:
+                cutouts.setdefault(id(cutout), (len(cutouts), cutout))
+            part_cutouts.append(cutouts[id(cutout)][0] if cutout is not None else -1)
             names.append(name)
             vertices.append(v)
             faces.append(f)
@@ -172,7 +183,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     if not faces:
         raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
     return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped,
-                     tuple(skipped.items()), tuple(texcoords))
+                     tuple(skipped.items()), tuple(texcoords),
+                     tuple(cutout for _, cutout in cutouts.values()), tuple(part_cutouts))
 
 
 def _check_data_uris(gltf: dict) -> None:
@@ -230,7 +242,9 @@ def _closed(faces: np.ndarray) -> bool:
 MESH_ENTRY = {"names": ("U", 1), "closed": ("b", 1), "dropped": ("i", 0), "vertices": ("f", 2),
               "faces": ("i", 2), "vertex_ends": ("i", 1), "face_ends": ("i", 1),
               "skipped_kinds": ("U", 1), "skipped_counts": ("i", 1),
-              "texcoords": ("f", 3), "textured": ("b", 1)}
+              "texcoords": ("f", 3), "textured": ("b", 1), "cutout_texels": ("u", 1),
+              "cutout_shapes": ("i", 2), "cutout_cutoffs": ("f", 1), "cutout_names": ("U", 1),
+              "part_cutouts": ("i", 1)}
 
 
 def _read_cache(path: Path) -> MeshParts | None:
@@ -266,9 +280,21 @@ def _read_cache(path: Path) -> MeshParts | None:
         raise DamagedEntry("texture coordinates not one finite (3, 2) per textured face")
     uv_ends = np.cumsum([len(f) if t else 0 for f, t in zip(split_faces, textured)])
     texcoords = tuple(u if t else None for u, t in zip(np.split(uv, uv_ends[:-1]), textured))
+    shapes, texels, cutoffs = z["cutout_shapes"], z["cutout_texels"], z["cutout_cutoffs"]
+    part_cutouts = z["part_cutouts"]
+    if (shapes.shape[1:] != (2,) or len(cutoffs) != len(shapes)
+            or len(z["cutout_names"]) != len(shapes) or (shapes < 1).any()
+            or shapes.prod(axis=1).sum() != len(texels) or len(part_cutouts) != parts
+            or (part_cutouts < -1).any() or (part_cutouts >= len(shapes)).any()
+            or not ((cutoffs >= 0) & (cutoffs <= 1)).all()
+            or any(not textured[p] for p in np.flatnonzero(part_cutouts >= 0))):
+        raise DamagedEntry("cut-outs not of their parts and texels")
+    ends = np.cumsum(shapes.prod(axis=1))
+    cutouts = tuple((t.reshape(shape), float(c), str(n)) for t, shape, c, n in zip(
+        np.split(texels, ends[:-1]), shapes, cutoffs, z["cutout_names"]))
     return MeshParts(tuple(str(n) for n in z["names"]), tuple(split_vertices),
                      tuple(split_faces), tuple(bool(c) for c in z["closed"]), int(z["dropped"]),
-                     skipped, texcoords)
+                     skipped, texcoords, cutouts, tuple(int(i) for i in part_cutouts))
 
 
 def _write_cache(path: Path, parts: MeshParts) -> None:
@@ -288,7 +314,17 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
                            "textured": np.array([t is not None for t in parts.texcoords]),
                            "texcoords": np.concatenate(
                                [np.zeros((0, 3, 2), np.float32)]
-                               + [t for t in parts.texcoords if t is not None])})
+                               + [t for t in parts.texcoords if t is not None]),
+                           "cutout_texels": np.concatenate(
+                               [np.zeros(0, np.uint8)] + [t.ravel() for t, _, _ in
+                                                          parts.cutouts]),
+                           "cutout_shapes": np.array([t.shape for t, _, _ in parts.cutouts],
+                                                     np.int64).reshape(-1, 2),
+                           "cutout_cutoffs": np.array([c for _, c, _ in parts.cutouts],
+                                                      np.float64),
+                           "cutout_names": np.array([n for _, _, n in parts.cutouts],
+                                                    dtype=str),
+                           "part_cutouts": np.array(parts.part_cutouts, np.int64)})
     except OSError:
         pass
 

@@ -2,10 +2,12 @@
 (trimesh's OBJ reader loops in Python per face: most of a minute at 10^6 triangles on a busy
 machine). What cannot define a triangle is skipped and counted, never refused: faces of fewer
 than 3 vertices, ``l`` and ``p`` elements, and every statement that is not ``v``, ``vt``,
-``f``, ``o`` or ``g`` (``vn``: file normals are never read, ``s``, ``mtllib``: never opened,
-``usemtl``, unknown keywords). Texture coordinates (``vt``, a face's ``v/vt``) are read for
-alpha-tested casters, their v flipped (harness/scene/alpha.py's convention). What stays an error names its line: an index out of range, a
-vertex that is not 3 numbers, a non-finite coordinate that a face uses.
+``f``, ``o`` or ``g`` (``vn``: file normals are never read, ``s``, ``mtllib``, ``usemtl``,
+unknown keywords). Texture coordinates (``vt``, a face's ``v/vt``) are read for alpha-tested
+casters, their v flipped (harness/scene/alpha.py's convention), and the ``mtllib`` files only
+for their materials' ``map_d`` (a cut-out, with ``usemtl``). What stays an error names its
+line: an index out of range, a vertex that is not 3 numbers, a non-finite coordinate that a
+face uses.
 
 :func:`obj_triangles` is the cheap count the budget is checked against before any parse: the
 ``f`` lines' triangles with polygons fanned, read in blocks of ``SCAN_BLOCK`` bytes, so its
@@ -14,6 +16,7 @@ memory is bounded whatever the file's size, and it stops once past the budget.""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -131,11 +134,12 @@ class ObjLines:
             raise ValueError(_loadtxt_problem(str(e), lines, what, columns)) from None
         return lines + 1, values
 
-    def faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
+    def faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
         """Triangles (polygons fanned) as 0-based vertex indices; each one's part, the count
         of ``o`` and ``g`` lines above it (trimesh's split_objects and split_groups); the lines
-        that start parts; the faces of fewer than 3 vertices, skipped; and the triangles'
-        corners' 0-based ``vt`` indices, -1 where a corner names none."""
+        that start parts; the faces of fewer than 3 vertices, skipped; the triangles'
+        corners' 0-based ``vt`` indices, -1 where a corner names none; and each triangle's
+        line."""
         lines = self.starting(b"f")
         text, place = self.text(lines, b"f")
         blank = _blank(text)
@@ -178,7 +182,7 @@ class ObjLines:
         corners = np.c_[first, first + k + 1, first + k + 2]
         starts = np.union1d(self.starting(b"o"), self.starting(b"g"))
         return (index[corners], np.repeat(np.searchsorted(starts, lines), fans), starts,
-                int((~kept).sum()), texture[corners])
+                int((~kept).sum()), texture[corners], np.repeat(lines, fans))
 
     @staticmethod
     def _texture_words(text: np.ndarray, blank: np.ndarray, slash: np.ndarray) -> list[bytes]:
@@ -250,11 +254,67 @@ def finite(values: np.ndarray, element) -> None:
         raise ValueError(f"{element(row)} {what}")
 
 
-def read_obj(data: bytes) -> tuple[list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]],
-                                   dict[str, int]]:
+# an OBJ's cut-outs: its materials' map_d (the mtllib files it names are read for that alone),
+# each texture's alpha (or grey) at this cutoff (OBJ has none of its own; engines' default)
+MAP_D_CUTOFF = 0.5
+MTL_MAX_BYTES = 1 << 24
+UNREADABLE_MAP_D = "map_d textures that cannot be read (their faces opaque)"
+FileCutout = tuple[np.ndarray, float, str]  # a file's own cut-out: texture, cutoff, where from
+
+
+def _material_cutouts(lines: ObjLines, folder: Path | None, skipped: dict[str, int]
+                      ) -> dict[str, FileCutout]:
+    """The cut-out of each material of the ``mtllib`` files that has a ``map_d`` (a PNG,
+    relative to its .mtl file); one that cannot be read is counted in ``skipped``."""
+    from .alpha_files import read_alpha_texture
+
+    cutouts: dict[str, FileCutout] = {}
+    for line in lines.starting(b"mtllib") if folder is not None else ():
+        for name in lines.name(line).split():
+            path = folder / name
+            try:
+                if not path.is_file() or path.stat().st_size > MTL_MAX_BYTES:
+                    continue
+                text = path.read_text("utf-8", "replace")
+            except OSError:
+                continue
+            material = None
+            for words in (row.split() for row in text.splitlines()):
+                if words[:1] == ["newmtl"] and len(words) > 1:
+                    material = " ".join(words[1:])
+                elif words[:1] == ["map_d"] and len(words) > 1 and material is not None:
+                    texture = path.parent / words[-1]  # options (-clamp on ...) come first
+                    try:
+                        cutouts[material] = (read_alpha_texture(texture), MAP_D_CUTOFF,
+                                             f"{name}: {material}: map_d {words[-1]}")
+                    except (OSError, ValueError):
+                        skipped[UNREADABLE_MAP_D] = skipped.get(UNREADABLE_MAP_D, 0) + 1
+    return cutouts
+
+
+def _triangle_cutouts(lines: ObjLines, triangle_lines: np.ndarray,
+                      cutouts: dict[str, FileCutout]) -> tuple[np.ndarray, list[FileCutout]]:
+    """Per triangle, the index of its material's cut-out in the list returned (-1: none): the
+    material of the last ``usemtl`` above its line."""
+    used = lines.starting(b"usemtl")
+    if not cutouts or not len(used):
+        return np.full(len(triangle_lines), -1), []
+    names = [lines.name(i) for i in used]
+    chosen = sorted({n for n in names if n in cutouts})
+    index = {n: k for k, n in enumerate(chosen)}
+    per_usemtl = np.array([-1] + [index.get(n, -1) for n in names])
+    return (per_usemtl[np.searchsorted(used, triangle_lines)],
+            [cutouts[n] for n in chosen])
+
+
+def read_obj(data: bytes, folder: Path | None = None
+             ) -> tuple[list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None,
+                                   FileCutout | None]], dict[str, int]]:
     """An OBJ file's parts (each ``o`` or ``g`` line starts one; faces above any: the first),
     each with its corners' texture coordinates (F, 3, 2), v flipped to glTF's downward
-    convention, or None where a corner names no ``vt``; and what was skipped, counted:
+    convention, or None where a corner names no ``vt``, and its cut-out (the ``map_d`` of its
+    faces' material, read from the ``mtllib`` files in ``folder``; a part whose faces use
+    several is split by them); and what was skipped, counted:
     ``{SHORT_FACES: n, keyword: n, ...}``."""
     try:
         data.decode("utf-8")
@@ -263,7 +323,7 @@ def read_obj(data: bytes) -> tuple[list[tuple[str, np.ndarray, np.ndarray, np.nd
                          f"offset {e.start} is not UTF-8") from None
     lines = ObjLines(data)
     numbers, vertices = lines.vectors(b"v", "vertex")
-    triangles, part, starts, short, texture = lines.faces()
+    triangles, part, starts, short, texture, triangle_lines = lines.faces()
     uv_lines, uv = lines.vectors(b"vt", "texture coordinate", 2)
     used_uv = np.unique(texture[texture >= 0])
     finite(uv[used_uv], lambda row: f"line {uv_lines[used_uv[row]]}: texture coordinate")
@@ -273,13 +333,19 @@ def read_obj(data: bytes) -> tuple[list[tuple[str, np.ndarray, np.ndarray, np.nd
     finite(vertices[used], lambda row: f"line {numbers[used[row]]}: vertex")
     skipped = {SHORT_FACES: short} if short else {}
     skipped.update(lines.skipped())
-    order = np.argsort(part, kind="stable")
-    bounds = np.searchsorted(part[order], np.arange(len(starts) + 2))
+    cut, cutouts = _triangle_cutouts(lines, triangle_lines,
+                                     _material_cutouts(lines, folder, skipped))
+    group = part * (len(cutouts) + 1) + cut + 1  # a part's faces apart by their cut-out
+    order = np.argsort(group, kind="stable")
+    bounds = np.searchsorted(group[order], np.arange(group.max(initial=0) + 2))
     parts = []
-    for p in np.flatnonzero(np.bincount(part)):  # per part, not per triangle
-        chosen = order[bounds[p]:bounds[p + 1]]
+    for g in np.flatnonzero(np.bincount(group)):  # per part, not per triangle
+        chosen = order[bounds[g]:bounds[g + 1]]
+        p, c = divmod(int(g), len(cutouts) + 1)
         corners = texture[chosen]
-        name = lines.name(starts[p - 1]) if p else ""
-        parts.append((name or f"part{p}", vertices, triangles[chosen],
-                      uv[corners] if (corners >= 0).all() else None))
+        name = (lines.name(starts[p - 1]) if p else "") or f"part{p}"
+        split = len(np.unique(cut[part == p])) > 1
+        parts.append((f"{name}:{cutouts[c - 1][2]}" if split and c else name, vertices,
+                      triangles[chosen], uv[corners] if (corners >= 0).all() else None,
+                      cutouts[c - 1] if c else None))
     return parts, skipped

@@ -282,19 +282,24 @@ def _base_mesh(obj) -> trimesh.Trimesh:
 
 
 def _object_parts(obj, source: Path | None
-                  ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """(name, vertices float64, faces int32, corners' texture coordinates or None) of one copy
-    of the object, in its own frame: a mesh file's parts (cached: harness.config.mesh_files),
-    or trimesh's construction (a plane's texture coordinates: PLANE_UV)."""
+                  ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None,
+                                  AlphaMask | None]]:
+    """(name, vertices float64, faces int32, corners' texture coordinates or None, the file's
+    own cut-out or None) of one copy of the object, in its own frame: a mesh file's parts
+    (cached: harness.config.mesh_files), or trimesh's construction (a plane's texture
+    coordinates: PLANE_UV)."""
     if isinstance(obj, cfg.MeshFile):
         mesh = cfg.mesh_parts(cfg.resolve_mesh_path(source or Path("."), obj), obj.up)
-        return [(f":{name}" if len(mesh.names) > 1 else "", v, f, uv)
-                for name, v, f, uv in zip(mesh.names, mesh.vertices, mesh.faces,
-                                          mesh.texcoords)]
+        own = [AlphaMask(texture, cutoff, f"{obj.label}: {name}")
+               for texture, cutoff, name in mesh.cutouts]
+        return [(f":{name}" if len(mesh.names) > 1 else "", v, f, uv,
+                 own[k] if k >= 0 else None)
+                for name, v, f, uv, k in zip(mesh.names, mesh.vertices, mesh.faces,
+                                             mesh.texcoords, mesh.part_cutouts)]
     base = _base_mesh(obj)
     faces = np.asarray(base.faces, dtype=np.int32)
     return [("", np.asarray(base.vertices, dtype=np.float64), faces,
-             PLANE_UV[faces] if isinstance(obj, cfg.Plane) else None)]
+             PLANE_UV[faces] if isinstance(obj, cfg.Plane) else None, None)]
 
 
 def _alpha_mask(obj, source: Path | None) -> AlphaMask | None:
@@ -321,8 +326,8 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
         raise_if_interrupted()
         transform = _transform(obj)
         array = obj.array or cfg.Array()
-        mask = _alpha_mask(obj, source)
-        for suffix, local, faces, texcoords in pieces:
+        mask = _alpha_mask(obj, source)  # the object's alpha key: every part's cut-out
+        for suffix, local, faces, texcoords, own in pieces:
             vertices = trimesh.transformations.transform_points(local, transform)
             for ix in np.ndindex(*array.count):
                 offset = np.asarray(ix, dtype=float) * np.asarray(array.step)
@@ -332,8 +337,8 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
                     faces=faces,
                     albedo=obj.albedo,
                     object_index=index,
-                    texcoords=texcoords if mask is not None else None,
-                    alpha=mask,
+                    texcoords=texcoords if (mask or own) is not None else None,
+                    alpha=mask or own,
                 ))
     if scene.family is not None:  # no object of its own: object motions never move it
         mask = families.alpha_mask(scene.family.kind)
