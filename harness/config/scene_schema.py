@@ -304,6 +304,12 @@ class Scene(Strict):
             raise ValueError("must include 'shadow'")
         return v
 
+    @model_validator(mode="after")
+    def _direct_without_cutouts(self):
+        if "direct" in self.effects and self.family is not None and self.family.kind == "cards":
+            raise ValueError(f"effects: {DIRECT_WITH_CUTOUTS.removeprefix('direct: ')}")
+        return self
+
     @field_validator("objects")
     @classmethod
     def _objects(cls, v):
@@ -364,6 +370,17 @@ def _within_budget(path: Path, node, loc: tuple, total: int, budget: int | None)
         raise key_error(path, node, loc, f"{total:,} triangles, more than the budget of "
                         f"{budget:,} (what fits 4 GiB for every technique; an experiment may "
                         "raise it with triangle_budget:)")
+
+
+# Mitsuba's direct integrator tests its shadow rays with ray_test, every surface opaque
+DIRECT_WITH_CUTOUTS = ("direct: the shaded reference cannot simulate alpha-tested casters "
+                       "(its shadow rays see every surface opaque); use effects: [shadow]")
+
+
+def _cut_out(path: Path, obj: Placed) -> bool:
+    """Whether the object has a cut-out: its ``alpha`` key, or a mesh file's own."""
+    return obj.alpha is not None or (isinstance(obj, MeshFile) and any(
+        k >= 0 for k in mesh_parts(resolve_mesh_path(path, obj), obj.up).part_cutouts))
 
 
 def _check_alpha(path: Path, node, scene_name: str, index: int, obj: Placed) -> None:
@@ -433,4 +450,6 @@ def check_scenes(path: str | Path, scenes: dict[str, Scene], names,
             total += one * copies
             if obj.alpha is not None:
                 _check_alpha(path, node, name, i, obj)
+            if "direct" in scene.effects and _cut_out(path, obj):
+                raise key_error(path, node, ("scenes", name, "effects"), DIRECT_WITH_CUTOUTS)
         _within_budget(path, node, ("scenes", name, "objects"), total, triangle_budget)

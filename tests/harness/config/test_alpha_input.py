@@ -310,3 +310,15 @@ def test_an_opaque_scene_s_key_has_no_alpha_term():
               "objects": {"__all__": {"name", "alpha"}}}
     text = json.dumps(scene.config.model_dump(mode="json", exclude=labels), sort_keys=True)
     assert scene.key == hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def test_direct_lighting_with_cut_outs_is_refused(tmp_path, capsys):
+    """The shaded reference (Mitsuba's direct integrator) would shadow through no hole: an
+    effect the harness cannot simulate is an error, not a silent approximation. Catches a
+    scene with alpha and ``effects: [shadow, direct]`` accepted."""
+    scene = scene_with(objects__1={"shape": "plane", "size": [2, 2], "translate": [0, 0, 1.5],
+                                   "alpha": {"pattern": "disc"}}, effects=["shadow", "direct"])
+    write_scenes(tmp_path, {"s": scene})
+    code, err = run_cli(sweep(tmp_path / "scenes.yaml", tmp_path / "out"), capsys)
+    assert_one_line(code, err, 2, "scenes.s.effects", "cannot simulate alpha-tested casters")
+    assert not (tmp_path / "out").exists()
