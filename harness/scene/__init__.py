@@ -19,7 +19,7 @@ from .. import config as cfg
 from . import families
 from . import motion as motion_paths
 from . import topology
-from .alpha import AlphaMask, pattern_texture
+from .alpha import QUAD_UV, AlphaMask, pattern_texture
 from ..machine.interrupt import raise_if_interrupted
 
 
@@ -251,11 +251,6 @@ def _transform(obj: cfg.Placed) -> np.ndarray:
     return m @ np.diag([*scale, 1.0])
 
 
-# a plane's corners' texture coordinates: the image lies on it as seen from above (+z), its
-# first row along +y, u from -x to +x
-PLANE_UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
-
-
 def _plane(size) -> trimesh.Trimesh:
     sx, sy = size[0] / 2, size[1] / 2
     v = [[-sx, -sy, 0], [sx, -sy, 0], [sx, sy, 0], [-sx, sy, 0]]
@@ -287,7 +282,7 @@ def _object_parts(obj, source: Path | None
     """(name, vertices float64, faces int32, corners' texture coordinates or None, the file's
     own cut-out or None) of one copy of the object, in its own frame: a mesh file's parts
     (cached: harness.config.mesh_files), or trimesh's construction (a plane's texture
-    coordinates: PLANE_UV)."""
+    coordinates: alpha.QUAD_UV, its corners being a quad's)."""
     if isinstance(obj, cfg.MeshFile):
         mesh = cfg.mesh_parts(cfg.resolve_mesh_path(source or Path("."), obj), obj.up)
         own = [AlphaMask(texture, cutoff, f"{obj.label}: {name}")
@@ -299,7 +294,7 @@ def _object_parts(obj, source: Path | None
     base = _base_mesh(obj)
     faces = np.asarray(base.faces, dtype=np.int32)
     return [("", np.asarray(base.vertices, dtype=np.float64), faces,
-             PLANE_UV[faces] if isinstance(obj, cfg.Plane) else None, None)]
+             QUAD_UV[faces] if isinstance(obj, cfg.Plane) else None, None)]
 
 
 def _alpha_mask(obj, source: Path | None) -> AlphaMask | None:

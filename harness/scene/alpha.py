@@ -70,6 +70,12 @@ def sample_alpha(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return top * (1 - fy) + bottom * fy
 
 
+# the texture coordinates of a quad's corners, in the order (-x, -y), (+x, -y), (+x, +y), (-x, +y)
+# of its own axes (a plane's, a card's): the image lies on it seen from +z, its first row
+# along +y, u from -x to +x
+QUAD_UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+
+
 def pattern_texture(pattern: str, width: int, height: int) -> np.ndarray:
     """A procedural alpha texture (H, W) uint8, each texel 255 (there) or 0 (cut out), decided
     at its centre: ``checker`` texel (i, j) there where i + j is even; ``bars`` columns j

@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import config as cfg
-from .alpha import AlphaMask, pattern_texture
+from .alpha import QUAD_UV, AlphaMask, pattern_texture
 
 TOLERANCE = 0.05
 GROUND = 20.0  # side of the ground square every family stands on
@@ -279,7 +279,6 @@ def foliage(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
 
 BRANCHES, BRANCH_SECTIONS = 6, 4
 LEAF = ("leaf", 64, 0.5)  # the cards' cut-out: pattern, texels, cutoff
-CARD_UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)  # as a plane's (scene)
 
 
 def _segment(start, end, radius: float, sections: int) -> Mesh:
@@ -305,7 +304,7 @@ def _cards_triangles_per_tree(cards: int) -> int:
 def cards(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
     """Trees as ``foliage``'s, their leaves cut out of cards by LEAF, the cards spread along
     BRANCHES branches from the trunk's top: per tree a part ``tree{k}`` (trunk and branches,
-    opaque) and a part ``cards{k}`` (the cards, each quad's corners in CARD_UV's order)."""
+    opaque) and a part ``cards{k}`` (the cards, each quad's corners in QUAD_UV's order)."""
     # half foliage's trees in each direction: a tree's trunk and branches (60 triangles) take
     # a quarter of the family at 10^3, under 2 % at 10^5
     trees = max(1, round(math.sqrt(triangles) / 8))
@@ -335,7 +334,7 @@ def cards(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
         axis_v = np.cross(axis_u, rng.normal(size=(count, 3)))
         axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
         u, v = axis_u * length / 2, axis_v * length / 4
-        corners = np.stack([centre - u + v, centre + u + v, centre + u - v, centre - u - v], 1)
+        corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
         quad = np.array([[0, 1, 2], [0, 2, 3]])
         faces = (quad[None] + 4 * np.arange(count)[:, None, None]).reshape(-1, 3)
         parts += [(f"tree{k}", _merge(wood)),
@@ -346,8 +345,8 @@ def cards(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
 
 def _cards_texcoords(name: str, faces: np.ndarray) -> np.ndarray | None:
     """The corners' texture coordinates of a ``cards`` part (its quads' corners 0..3 are
-    CARD_UV's), None for the opaque ones."""
-    return CARD_UV[faces % 4] if name.startswith("cards") else None
+    QUAD_UV's), None for the opaque ones."""
+    return QUAD_UV[faces % 4] if name.startswith("cards") else None
 
 
 KINDS = {"tessellation": tessellation, "instancing": instancing,
