@@ -41,7 +41,7 @@ def main() -> None:
     from harness.scene import load_scene
     from harness.truth.reference import compute_reference
 
-    print("scene | triangles | cut-out passes | opaque s | cut-out s | ratio wall (min-max) | "
+    print("scene | triangles | bounded rays | opaque s | cut-out s | ratio wall (min-max) | "
           "ratio CPU (min-max)")
     for name in args.scenes:
         scene = load_scene(name).with_resolution(args.size, args.size)
@@ -63,7 +63,7 @@ def main() -> None:
             seconds.append((ow, aw))
         opaque_s = statistics.median(o for o, _ in seconds)
         alpha_s = statistics.median(a for _, a in seconds)
-        print(f"{name} | {len(scene.triangles):,} | bounded rays {runs['alpha'][-1]} | "
+        print(f"{name} | {len(scene.triangles):,} | {runs['alpha'][-1]} | "
               f"{opaque_s:.2f} | {alpha_s:.2f} | {statistics.median(walls):.2f} "
               f"({min(walls):.2f}-{max(walls):.2f}) | {statistics.median(cpus):.2f} "
               f"({min(cpus):.2f}-{max(cpus):.2f})")
