@@ -322,3 +322,15 @@ def test_direct_lighting_with_cut_outs_is_refused(tmp_path, capsys):
     code, err = run_cli(sweep(tmp_path / "scenes.yaml", tmp_path / "out"), capsys)
     assert_one_line(code, err, 2, "scenes.s.effects", "cannot simulate alpha-tested casters")
     assert not (tmp_path / "out").exists()
+
+
+def test_list_says_which_parts_are_cut_out():
+    """``shadowbench list --scene`` names each object's cut-out and cutoff; opaque objects'
+    lines are as before. Catches a cut-out invisible to the user before a run."""
+    from helpers import SCENE_FILE
+
+    from harness.cli.listing import inspect_lines
+
+    ground, card = inspect_lines(SCENE_FILE, "alpha_checker")[1:3]
+    assert ground.endswith("2 triangles, 1 parts")
+    assert card.endswith("1 parts, 1 parts cut out by pattern checker 8x8 at 0.5")
