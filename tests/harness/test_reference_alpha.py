@@ -105,3 +105,23 @@ def test_the_textures_bytes_are_in_the_cache_key(tmp_path):
                           [scene.parts[0], type(part)(**{**part.__dict__, "alpha": other})],
                           scene.light, scene.key, scene.source)
     assert ref_mod.cache_key(changed, 4, 0) != key
+
+
+@pytest.mark.parametrize("variant", ["llvm_ad_rgb", "scalar_rgb"])
+def test_a_ray_at_the_bound_is_counted_occluded(variant, monkeypatch):
+    """A card that is all cut out (a checker at cutoff 1: alpha reaches 1 only at its opaque
+    texels' centres) casts no shadow; with the bound at one cut-out hit, every shadow ray that
+    passes it stops there, is counted occluded, and is counted in ``bounded_rays``. Catches a
+    bound that lets rays through uncounted, or one that counts rays that met nothing."""
+    scene = load_scene("alpha_checker").with_resolution(24, 24)
+    card = scene.parts[1]
+    clear = type(card.alpha)(card.alpha.texture, 1.0, "all cut out")
+    scene = type(scene)(scene.name, scene.config,
+                        [scene.parts[0], type(card)(**{**card.__dict__, "alpha": clear})],
+                        scene.light, scene.key, scene.source)
+    free = compute_reference(scene, samples=1, use_cache=False, variant=variant)
+    assert (free.visibility == 1).all() and free.bounded_rays == 0
+    monkeypatch.setattr(ref_mod, "MAX_CUTOUT_HITS", 1)
+    with pytest.warns(RuntimeWarning, match="cut-out hits and were counted occluded"):
+        bounded = compute_reference(scene, samples=1, use_cache=False, variant=variant)
+    assert bounded.bounded_rays == (bounded.visibility == 0).sum() > 10
