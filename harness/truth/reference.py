@@ -233,7 +233,8 @@ def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: i
 
 def _toward_light(mi, scene: BuiltScene, si):
     """The shadow ray from ``si``'s point, spawned past it (Mitsuba's offset along its
-    normal: no hit on its own surface), toward the light."""
+    normal: no hit on its own surface), toward the light: from a receiver, and again from
+    each cut-out hit."""
     import drjit as dr
 
     light = scene.light
@@ -274,7 +275,7 @@ def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
             mask = int(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si))
             if mask < 0 or scene.alpha_masks[mask].opaque(np.array([si.uv.x, si.uv.y])):
                 return True, False
-            ray = _continued(mi, scene, si, ray)
+            ray = _toward_light(mi, scene, si)
         return bool(active), bool(active)
     table = _cutout_table(mi, scene)
 
@@ -289,20 +290,13 @@ def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
         there = found & (~cut | _there(mi, table, mask, si.uv, cut))
         passed = dr.select(cut & ~there, passed + 1, passed)
         active = cut & ~there & (passed < MAX_CUTOUT_HITS)
-        return (_continued(mi, scene, si, ray), active, occluded | there, passed)
+        return (_toward_light(mi, scene, si), active, occluded | there, passed)
 
     _, _, occluded, passed = dr.while_loop(
         (ray, mi.Bool(active), dr.zeros(mi.Bool, dr.width(active)),
          dr.zeros(mi.UInt32, dr.width(active))), going, step)
     bounded = ~occluded & (passed >= MAX_CUTOUT_HITS)
     return occluded | bounded, bounded
-
-
-def _continued(mi, scene: BuiltScene, si, ray):
-    """The shadow ray going on from past the cut-out hit ``si`` (same direction)."""
-    if scene.light.type == "directional":
-        return si.spawn_ray(ray.d)
-    return si.spawn_ray_to(ray.o + ray.d * ray.maxt)
 
 
 @dataclass
@@ -318,8 +312,6 @@ class _CutoutTable:
 
 
 def _cutout_table(mi, scene: BuiltScene) -> _CutoutTable:
-    import drjit as dr
-
     masks = scene.alpha_masks
     sizes = [m.texture.size for m in masks]
     return _CutoutTable(

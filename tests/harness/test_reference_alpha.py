@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.scene import load_scene
+from harness import config as cfg
+from harness.scene import build_scene, load_scene
 from harness.scene.alpha import pattern_texture, sample_alpha
 from harness.scene.transforms import look_at
 from harness.truth import reference as ref_mod
@@ -48,8 +49,9 @@ def exact_visibility(scene, fx: np.ndarray, fy: np.ndarray):
 
     _, on_card, card_edge = on_plane(height, cx, cy)
     point, on_ground, ground_edge = on_plane(0.0, gx, gy)
-    to_light = -scene.light.direction
-    q = point + (height / to_light[2]) * to_light  # the ground point's light ray at the card
+    light = scene.light
+    to_light = -light.direction if light.type == "directional" else light.position - point
+    q = point + (height / to_light[..., 2])[..., None] * to_light  # its light ray at the card
     within = (np.abs(q[..., 0]) <= cx) & (np.abs(q[..., 1]) <= cy)
     border = np.minimum(np.abs(np.abs(q[..., 0]) - cx), np.abs(np.abs(q[..., 1]) - cy)) < EDGE
     uv = np.stack([q[..., 0] / (2 * cx) + 0.5, 0.5 - q[..., 1] / (2 * cy)], -1)  # PLANE_UV
@@ -75,14 +77,28 @@ def sample_positions(mi, scene, seed: int = 0):
             np.array([p[1] for p in pos], np.float64).reshape(scene.height, scene.width))
 
 
-@pytest.mark.parametrize("variant, size", [("llvm_ad_rgb", 128), ("scalar_rgb", 32)])
-def test_the_checker_card_shadow_is_exact_but_at_ties(variant, size):
+def with_light(scene, light: dict):
+    config = scene.config.model_copy(update={"light": cfg.Scene.model_validate(
+        {**scene.config.model_dump(), "light": light}).light})
+    return build_scene(scene.name, config, scene.source)
+
+
+# the directional light's shadow, about, from a point light 3 units from the card along it
+POINT = {"type": "point", "position": [3.0, -1.8, 4.5]}
+
+
+@pytest.mark.parametrize("variant, size, light", [
+    ("llvm_ad_rgb", 128, None), ("scalar_rgb", 32, None), ("llvm_ad_rgb", 128, POINT)])
+def test_the_checker_card_shadow_is_exact_but_at_ties(variant, size, light):
     """One sample a pixel, so V is that sample's visibility: equal to the exact one at every
     pixel but ties, and ties few (108 of 16,384 at 128^2, 7 of them differing). Catches (each
     tried): the loop going on past every cut-out hit (no shadow: 1,924 pixels wrong at 128^2;
     scalar_rgb 136 at 32^2), stopping at every hit (the card's whole square: 1,924; scalar
-    104), the cut-out read with v upward (3,848)."""
+    104), the cut-out read with v upward (3,848). A point light's rays go on toward its
+    position from each cut-out hit."""
     scene = load_scene("alpha_checker").with_resolution(size, size)
+    if light is not None:
+        scene = with_light(scene, light)
     ref = compute_reference(scene, samples=1, use_cache=False, variant=variant)
     mi = ref_mod.mitsuba_module(variant)
     exact, tie = exact_visibility(scene, *sample_positions(mi, scene))
