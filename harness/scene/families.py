@@ -245,6 +245,21 @@ def architecture(triangles: int, rng: np.random.Generator) -> list[tuple[str, Me
 TRUNK_SECTIONS = 6
 
 
+def _quads(centre: np.ndarray, axis_u: np.ndarray, length: float, width: float,
+           rng: np.random.Generator) -> Mesh:
+    """Cards (two triangles each) centred at ``centre`` (N, 3), ``length`` along ``axis_u``
+    (N, 3, normalised here) and ``width`` across, turned at random about it; each card's four
+    corners in alpha.QUAD_UV's order."""
+    axis_u = axis_u / np.linalg.norm(axis_u, axis=1, keepdims=True)
+    axis_v = np.cross(axis_u, rng.normal(size=axis_u.shape))
+    axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
+    u, v = axis_u * length / 2, axis_v * width / 2
+    corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    faces = (quad[None] + 4 * np.arange(len(centre))[:, None, None]).reshape(-1, 3)
+    return corners.reshape(-1, 3), faces.astype(np.int32)
+
+
 def foliage(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
     trees = max(1, round(math.sqrt(triangles) / 4))
     cards = ((triangles - 2) // trees - 2 * TRUNK_SECTIONS) // 2
@@ -261,16 +276,8 @@ def foliage(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
         centre *= (crown * rng.uniform(0, 1, cards) ** (1 / 3)
                    / np.linalg.norm(centre, axis=1))[:, None]
         centre += [*centres[k], trunk_h + crown]
-        axis_u = rng.normal(size=(cards, 3))
-        axis_u /= np.linalg.norm(axis_u, axis=1, keepdims=True)
-        axis_v = np.cross(axis_u, rng.normal(size=(cards, 3)))
-        axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
-        u, v = axis_u * length / 2, axis_v * length / 8
-        corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
-        quad = np.array([[0, 1, 2], [0, 2, 3]])
-        faces = (quad[None] + 4 * np.arange(cards)[:, None, None]).reshape(-1, 3)
-        parts.append((f"tree{k}", _merge([trunk, (corners.reshape(-1, 3),
-                                                   faces.astype(np.int32))])))
+        leaves = _quads(centre, rng.normal(size=(cards, 3)), length, length / 4, rng)
+        parts.append((f"tree{k}", _merge([trunk, leaves])))
     used = sum(len(f) for _, (_, f) in parts)
     return [("ground", _ground(*_receiver_cells(triangles - used)))] + parts
 
@@ -329,16 +336,9 @@ def cards(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
         along = rng.uniform(0.25, 1.0, count)[:, None]
         centre = top + heading[branch] * crown * along + rng.normal(
             scale=0.08 * crown, size=(count, 3))
-        axis_u = heading[branch] + rng.normal(scale=0.5, size=(count, 3))
-        axis_u /= np.linalg.norm(axis_u, axis=1, keepdims=True)
-        axis_v = np.cross(axis_u, rng.normal(size=(count, 3)))
-        axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
-        u, v = axis_u * length / 2, axis_v * length / 4
-        corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
-        quad = np.array([[0, 1, 2], [0, 2, 3]])
-        faces = (quad[None] + 4 * np.arange(count)[:, None, None]).reshape(-1, 3)
+        along_branch = heading[branch] + rng.normal(scale=0.5, size=(count, 3))
         parts += [(f"tree{k}", _merge(wood)),
-                  (f"cards{k}", (corners.reshape(-1, 3), faces.astype(np.int32)))]
+                  (f"cards{k}", _quads(centre, along_branch, length, length / 2, rng))]
     used = sum(len(f) for _, (_, f) in parts)
     return [("ground", _ground(*_receiver_cells(triangles - used)))] + parts
 
