@@ -334,3 +334,16 @@ def test_list_says_which_parts_are_cut_out():
     ground, card = inspect_lines(SCENE_FILE, "alpha_checker")[1:3]
     assert ground.endswith("2 triangles, 1 parts")
     assert card.endswith("1 parts, 1 parts cut out by pattern checker 8x8 at 0.5")
+
+
+def test_a_gltf_mask_material_on_a_part_without_texture_coordinates(tmp_path, capsys):
+    """The file's own cut-out with nothing to cut by is refused like an ``alpha`` key on such
+    a part. Catches the part cut out at uv (0, 0) everywhere, or silently opaque."""
+    gltf = _gltf({"name": "leaf", "alphaMode": "MASK"})
+    del gltf["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"]
+    (tmp_path / "m.gltf").write_text(json.dumps(gltf))
+    code, err = run_cli(sweep(with_alpha(tmp_path, None, shape="mesh", path="m.gltf",
+                                         size=None), tmp_path / "out"), capsys)
+    assert_one_line(code, err, 2, "scenes.s.objects.1.path", "material leaf (alphaMode MASK) "
+                    "cuts it out, and it has no texture coordinates")
+    assert not (tmp_path / "out").exists()
