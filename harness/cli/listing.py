@@ -170,6 +170,14 @@ def experiments_lines() -> list[str]:
             "`shadowbench run NAME --out DIR` from any folder):", f"  {', '.join(names)}"]
 
 
+def _cut_out(parts) -> str:
+    """``, 3 parts cut out by pattern leaf 64x64 at 0.5`` for parts with alpha ('' for none)."""
+    cut = [p for p in parts if p.alpha is not None]
+    masks = {id(p.alpha): p.alpha for p in cut}.values()
+    return (f", {len(cut)} parts cut out by " + "; ".join(f"{m.source} at {m.cutoff:g}"
+                                                          for m in masks)) if cut else ""
+
+
 def inspect_lines(path: Path, name: str) -> list[str]:
     """Each object of scene ``name`` as the scene places it (``scale``, then ``rotate`` about x,
     y, z, then ``translate``; never recentred; a mesh file turned to z up first): its world
@@ -201,12 +209,13 @@ def inspect_lines(path: Path, name: str) -> list[str]:
         copies = f", {int(np.prod(obj.array.count))} copies" if obj.array else ""
         lines.append(f"  {index}: {label}{f' ({obj.name})' if obj.name else ''}: bounds "
                      f"{bounds(vertices)}, {up}, {triangles:,} triangles, {len(own)} parts"
-                     f"{copies}")
+                     f"{copies}{_cut_out(own)}")
     family = [p for p in parts if p.object_index == -1]
     if family:
         vertices = np.concatenate([p.vertices for p in family])
         lines.append(f"  family {scene.family.kind}: bounds {bounds(vertices)}, "
-                     f"{sum(len(p.faces) for p in family):,} triangles, {len(family)} parts")
+                     f"{sum(len(p.faces) for p in family):,} triangles, {len(family)} parts"
+                     f"{_cut_out(family)}")
     if parts:
         lines.append(f"  scene bounds {bounds(np.concatenate([p.vertices for p in parts]))}")
     return lines

@@ -16,6 +16,8 @@ from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, Sce
 from .limits import (DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MAX_RUNS, MIN_FOV,
                      NAME_PATTERN)
 from .field_types import Coordinate, FieldOfView, Size, SquareInt, Strict, Vec3, square_number
+from .alpha_files import (MAX_TEXTURE_SIDE, PATTERNS, Alpha, read_alpha_texture,
+                          resolve_texture_path)
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
 from . import shipped
 from .motion_schema import MAX_ORBIT_DEG, MIN_DOLLY, Motion, ObjectMotion
@@ -29,6 +31,7 @@ from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
 from .yaml_source import line_of  # the planner names the line of a bad grid point
 
 __all__ = [
+    "Alpha", "MAX_TEXTURE_SIDE", "PATTERNS", "read_alpha_texture", "resolve_texture_path",
     "Array", "Box", "Camera", "Capsule", "ConfigError", "Coordinate", "Cylinder",
     "DEFAULT_TRIANGLE_BUDGET", "DirectionalLight", "Experiment", "Family", "FieldOfView", "Grid", "Lathe",
     "LIGHT_TYPES", "Light", "MAX_COORDINATE", "MAX_DEPTH_RATIO", "MAX_ORBIT_DEG",

@@ -21,7 +21,7 @@ from .cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from .limits import MAX_COORDINATE
 from .mesh_formats import (gltf_json, check_numbers, check_vertices, declared_triangles,
                            mesh_format, read_parts)
-from .mesh_obj import SHORT_FACES
+from .mesh_obj import SHORT_FACES, finite
 from .mesh_packages import package_file
 from .yaml_source import check_regular_file, key_error
 
@@ -35,7 +35,7 @@ class MeshSource(Protocol):
     up: str  # the file's up axis
     package: str | None  # an installed top-level package or distribution the file is of
 
-MESH_CACHE_VERSION = 3  # bump when what is cached (or how it is built) changes; 3: checksums
+MESH_CACHE_VERSION = 4  # bump when what is cached (or how it is built) changes; 4: texcoords
 # y-up assets (most of them) turned so that their +y is the scene's +z
 UP_ROTATION = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 
@@ -58,6 +58,13 @@ class MeshParts:
     closed: tuple[bool, ...]
     dropped: int
     skipped: tuple[tuple[str, int], ...] = ()
+    # per part, its corners' texture coordinates (F, 3, 2) float32 (glTF's convention,
+    # harness/scene/alpha.py), or None where the file gives a corner none
+    texcoords: tuple[np.ndarray | None, ...] = ()
+    # the file's own cut-outs (an OBJ's map_d, a glTF's alphaMode MASK): (texture (H, W)
+    # uint8, cutoff, where from) each, and per part the index of its own or -1
+    cutouts: tuple[tuple[np.ndarray, float, str], ...] = ()
+    part_cutouts: tuple[int, ...] = ()
 
     @property
     def triangles(self) -> int:
@@ -143,11 +150,14 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     if not found:
         note = skipped_note(skipped)
         raise ValueError("no triangle left" + (f" ({note})" if note else ""))
-    names, vertices, faces, closed, dropped, total = [], [], [], [], 0, 0
-    for name, v, f in found:
+    names, vertices, faces, closed, texcoords, dropped, total = [], [], [], [], [], 0, 0
+    cutouts, part_cutouts = {}, []
+    for name, v, f, uv, cutout in found:
         where = f"part {name!r}: " if len(found) > 1 else ""
         if fmt != "obj":  # an OBJ's numbers were checked by line
             check_vertices(v, where)
+            if uv is not None:
+                finite(uv.reshape(-1, 2), lambda i: f"{where}face {i // 3}'s texture coordinate")
         bad = np.flatnonzero((f < 0) | (f >= len(v)))
         if len(bad):
             face, corner = divmod(int(bad[0]), 3)
@@ -159,6 +169,13 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
         dropped += int(len(f) - good.sum())
         if good.any():
             f = f[good].astype(np.int32)
+            texcoords.append(None if uv is None else uv[good].astype(np.float32))
+            if cutout is not None and uv is None:
+                raise ValueError(f"{where}{cutout[2]} cuts it out, and it has no texture "
+                                 "coordinates")
+            if cutout is not None:
+                cutouts.setdefault(id(cutout), (len(cutouts), cutout))
+            part_cutouts.append(cutouts[id(cutout)][0] if cutout is not None else -1)
             names.append(name)
             vertices.append(v)
             faces.append(f)
@@ -166,7 +183,8 @@ def _build(mesh_path: Path, data: bytes, up: str) -> MeshParts:
     if not faces:
         raise ValueError(f"all {total:,} triangles are degenerate (zero area)")
     return MeshParts(tuple(names), tuple(vertices), tuple(faces), tuple(closed), dropped,
-                     tuple(skipped.items()))
+                     tuple(skipped.items()), tuple(texcoords),
+                     tuple(cutout for _, cutout in cutouts.values()), tuple(part_cutouts))
 
 
 def _check_data_uris(gltf: dict) -> None:
@@ -223,7 +241,10 @@ def _closed(faces: np.ndarray) -> bool:
 
 MESH_ENTRY = {"names": ("U", 1), "closed": ("b", 1), "dropped": ("i", 0), "vertices": ("f", 2),
               "faces": ("i", 2), "vertex_ends": ("i", 1), "face_ends": ("i", 1),
-              "skipped_kinds": ("U", 1), "skipped_counts": ("i", 1)}
+              "skipped_kinds": ("U", 1), "skipped_counts": ("i", 1),
+              "texcoords": ("f", 3), "textured": ("b", 1), "cutout_texels": ("u", 1),
+              "cutout_shapes": ("i", 2), "cutout_cutoffs": ("f", 1), "cutout_names": ("U", 1),
+              "part_cutouts": ("i", 1)}
 
 
 def _read_cache(path: Path) -> MeshParts | None:
@@ -252,9 +273,28 @@ def _read_cache(path: Path) -> MeshParts | None:
         if f.min() < 0 or f.max() >= len(v):
             raise DamagedEntry("faces index past their part's vertices")
     skipped = tuple((str(k), int(n)) for k, n in zip(z["skipped_kinds"], z["skipped_counts"]))
+    textured, uv = z["textured"], z["texcoords"]
+    if (len(textured) != parts or uv.shape[1:] != (3, 2) or uv.dtype != np.float32
+            or len(uv) != sum(len(f) for f, t in zip(split_faces, textured) if t)
+            or not np.isfinite(uv).all()):
+        raise DamagedEntry("texture coordinates not one finite (3, 2) per textured face")
+    uv_ends = np.cumsum([len(f) if t else 0 for f, t in zip(split_faces, textured)])
+    texcoords = tuple(u if t else None for u, t in zip(np.split(uv, uv_ends[:-1]), textured))
+    shapes, texels, cutoffs = z["cutout_shapes"], z["cutout_texels"], z["cutout_cutoffs"]
+    part_cutouts = z["part_cutouts"]
+    if (shapes.shape[1:] != (2,) or len(cutoffs) != len(shapes)
+            or len(z["cutout_names"]) != len(shapes) or (shapes < 1).any()
+            or shapes.prod(axis=1).sum() != len(texels) or len(part_cutouts) != parts
+            or (part_cutouts < -1).any() or (part_cutouts >= len(shapes)).any()
+            or not ((cutoffs >= 0) & (cutoffs <= 1)).all()
+            or any(not textured[p] for p in np.flatnonzero(part_cutouts >= 0))):
+        raise DamagedEntry("cut-outs not of their parts and texels")
+    ends = np.cumsum(shapes.prod(axis=1))
+    cutouts = tuple((t.reshape(shape), float(c), str(n)) for t, shape, c, n in zip(
+        np.split(texels, ends[:-1]), shapes, cutoffs, z["cutout_names"]))
     return MeshParts(tuple(str(n) for n in z["names"]), tuple(split_vertices),
                      tuple(split_faces), tuple(bool(c) for c in z["closed"]), int(z["dropped"]),
-                     skipped)
+                     skipped, texcoords, cutouts, tuple(int(i) for i in part_cutouts))
 
 
 def _write_cache(path: Path, parts: MeshParts) -> None:
@@ -270,7 +310,21 @@ def _write_cache(path: Path, parts: MeshParts) -> None:
                            "face_ends": np.cumsum([len(f) for f in parts.faces]),
                            "skipped_kinds": np.array([k for k, _ in parts.skipped], dtype=str),
                            "skipped_counts": np.array([n for _, n in parts.skipped],
-                                                      dtype=np.int64)})
+                                                      dtype=np.int64),
+                           "textured": np.array([t is not None for t in parts.texcoords]),
+                           "texcoords": np.concatenate(
+                               [np.zeros((0, 3, 2), np.float32)]
+                               + [t for t in parts.texcoords if t is not None]),
+                           "cutout_texels": np.concatenate(
+                               [np.zeros(0, np.uint8)] + [t.ravel() for t, _, _ in
+                                                          parts.cutouts]),
+                           "cutout_shapes": np.array([t.shape for t, _, _ in parts.cutouts],
+                                                     np.int64).reshape(-1, 2),
+                           "cutout_cutoffs": np.array([c for _, c, _ in parts.cutouts],
+                                                      np.float64),
+                           "cutout_names": np.array([n for _, _, n in parts.cutouts],
+                                                    dtype=str),
+                           "part_cutouts": np.array(parts.part_cutouts, np.int64)})
     except OSError:
         pass
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mesh_obj import finite, obj_triangles, read_obj
+from .mesh_obj import FileCutout, finite, obj_triangles, read_obj
 
 # every format trimesh reads that carries triangles (trimesh.exchange.load.mesh_formats()
 # less xyz, a point cloud); COLLADA (.dae) through pycollada, a dependency
@@ -204,23 +204,28 @@ def check_vertices(vertices: np.ndarray, name: str) -> None:
     finite(vertices, lambda i: f"{name}vertex {i}")
 
 
-Parts = list[tuple[str, np.ndarray, np.ndarray]]
+Parts = list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None, FileCutout | None]]
 
 
 def read_parts(path, fmt: str) -> tuple[Parts, dict[str, int]]:
-    """(name, vertices (V, 3) float64, faces (F, 3) int64) of each triangle mesh the file
-    places, in its file's order, unprocessed (trimesh's processing merges and drops); and what
-    was skipped, counted by kind."""
+    """(name, vertices (V, 3) float64, faces (F, 3) int64, texture coordinates per corner
+    (F, 3, 2) or None, the file's own cut-out or None) of each triangle mesh the file places,
+    in its file's order, unprocessed (trimesh's processing merges and drops); and what was
+    skipped, counted by kind. Texture coordinates follow glTF (v downward,
+    harness/scene/alpha.py): an OBJ's and a PLY's v (``s t``, ``u v``) flipped, a glTF's
+    ``TEXCOORD_0`` as written (trimesh reads it only for a primitive with a material). Cut-outs:
+    an OBJ's ``map_d`` (mesh_obj), a glTF material's ``alphaMode: MASK`` (:func:`_gltf_cutout`);
+    parts of one material share one."""
     import trimesh
 
     if fmt == "obj":
-        return read_obj(Path(path).read_bytes())
+        return read_obj(Path(path).read_bytes(), Path(path).parent)
     if fmt == "stl" and _stl_binary(data := Path(path).read_bytes()):  # no need of trimesh
         vertices = _stl_records(data)["v"].reshape(-1, 3).astype(np.float64)
-        return ([("stl", vertices, np.arange(len(vertices)).reshape(-1, 3))] if len(vertices)
-                else []), {}
+        return ([("stl", vertices, np.arange(len(vertices)).reshape(-1, 3), None, None)]
+                if len(vertices) else []), {}
     scene = trimesh.load(path, file_type=fmt, force="scene", process=False)
-    parts, other = [], 0
+    parts, other, cutouts = [], 0, {}
     for node in scene.graph.nodes_geometry:
         transform, geometry = scene.graph[node]
         mesh = scene.geometry[geometry]
@@ -229,7 +234,45 @@ def read_parts(path, fmt: str) -> tuple[Parts, dict[str, int]]:
             vertices = np.asarray(mesh.vertices, dtype=np.float64)
             if not np.allclose(transform, np.eye(4)):
                 vertices = vertices @ transform[:3, :3].T + transform[:3, 3]
-            parts.append((str(node), vertices, faces))
+            material = getattr(mesh.visual, "material", None)
+            if getattr(material, "alphaMode", None) == "MASK" and id(material) not in cutouts:
+                cutouts[id(material)] = _gltf_cutout(material)
+            parts.append((str(node), vertices, faces, _corner_uv(mesh, faces),
+                          cutouts.get(id(material))))
         else:
             other += 1
     return parts, ({NO_TRIANGLES: other} if other else {})
+
+
+def _corner_uv(mesh, faces: np.ndarray) -> np.ndarray | None:
+    """The mesh's per-vertex texture coordinates at each face corner, v downward; None when
+    it has none. trimesh keeps v upward (it flips a glTF's on load): flipped back here."""
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is None or np.shape(uv) != (len(mesh.vertices), 2):
+        return None
+    uv = np.asarray(uv, np.float64)
+    return np.stack([uv[:, 0], 1 - uv[:, 1]], -1)[faces]
+
+
+def _gltf_cutout(material) -> FileCutout:
+    """A glTF material's ``alphaMode: MASK``: alpha is its base colour texture's alpha (or
+    grey) times its base colour factor's alpha, rounded to 8 bits (a 1x1 texture of the
+    factor without a texture), there where alpha >= ``alphaCutoff`` (0.5 by default)."""
+    from .alpha_files import MAX_TEXTURE_SIDE
+
+    factor = np.asarray(material.baseColorFactor if material.baseColorFactor is not None
+                        else [255] * 4, np.float64)[3] / 255  # trimesh keeps it as uint8
+    image = material.baseColorTexture
+    name = f"material {material.name or '(unnamed)'}"
+    if image is None:
+        texture = np.full((1, 1), 255.0)
+    else:
+        if max(image.size) > MAX_TEXTURE_SIDE:
+            raise ValueError(f"{name}: its base colour texture is {image.size[0]}x"
+                             f"{image.size[1]}, over the limit of {MAX_TEXTURE_SIDE}")
+        bands = image.getbands()
+        texture = np.asarray(image.getchannel("A" if "A" in bands else bands[0]), np.float64)
+    cutoff = 0.5 if material.alphaCutoff is None else float(material.alphaCutoff)
+    if not 0 <= cutoff <= 1:
+        raise ValueError(f"{name}: alphaCutoff {cutoff} outside [0, 1]")
+    return np.rint(texture * factor).astype(np.uint8), cutoff, f"{name} (alphaMode MASK)"

@@ -10,9 +10,10 @@ from typing import Annotated, Literal, Union, get_args
 import numpy as np
 from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
 
+from .alpha_files import Alpha, read_alpha_texture, resolve_texture_path
 from .field_types import Coordinate, FieldOfView, Size, Strict, Vec3, vector_norm
 from .limits import DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO
-from .mesh_files import check_mesh
+from .mesh_files import check_mesh, mesh_parts, resolve_mesh_path
 from .motion_schema import Motion
 from .yaml_source import check_name, key_error, read_yaml, validation_error
 
@@ -107,10 +108,25 @@ class Placed(Strict):
     scale: Union[Size, tuple[Size, Size, Size]] = 1.0
     array: Array | None = None
     albedo: float = Field(0.8, ge=0, le=1)
+    alpha: Alpha | None = None  # a cut-out (alpha_files.py); opaque without it
+
+    @model_validator(mode="after")
+    def _texture_coordinates(self):
+        shape = getattr(self, "shape", None)
+        if self.alpha is not None and shape not in SHAPES_WITH_TEXCOORDS:
+            raise ValueError(f"alpha: a {shape} has no texture coordinates (trimesh makes none "
+                             "for it); alpha cuts out a plane or a mesh file with texture "
+                             "coordinates")
+        return self
 
     def triangles(self) -> int:
         """Triangles of one copy (trimesh's construction of the shape; at most, for a lathe)."""
         raise NotImplementedError
+
+
+# the shapes whose vertices carry texture coordinates: a plane's u, v over its size; a mesh
+# file's own (checked when the file is loaded)
+SHAPES_WITH_TEXCOORDS = ("plane", "mesh")
 
 
 class Plane(Placed):
@@ -229,7 +245,7 @@ class Family(Strict):
     """Procedural geometry of about ``triangles`` triangles (harness/scene/families.py): at most that
     many, and within 5% below. ``seed`` fixes its random layout."""
 
-    kind: Literal["tessellation", "instancing", "architecture", "foliage"]
+    kind: Literal["tessellation", "instancing", "architecture", "foliage", "cards"]
     triangles: TriangleCount
     seed: int = Field(0, ge=0)
 
@@ -253,7 +269,7 @@ class Family(Strict):
 # the smallest size each family reaches within 5%: one refined box and plane; otherwise a few
 # object copies of up to 320 triangles each
 FAMILY_MIN_TRIANGLES = {"tessellation": 100, "instancing": 1000, "architecture": 1000,
-                        "foliage": 1000}
+                        "foliage": 1000, "cards": 1000}
 
 
 SceneObject = Annotated[
@@ -287,6 +303,12 @@ class Scene(Strict):
         if "shadow" not in v:
             raise ValueError("must include 'shadow'")
         return v
+
+    @model_validator(mode="after")
+    def _direct_without_cutouts(self):
+        if "direct" in self.effects and self.family is not None and self.family.kind == "cards":
+            raise ValueError(f"effects: {DIRECT_WITH_CUTOUTS.removeprefix('direct: ')}")
+        return self
 
     @field_validator("objects")
     @classmethod
@@ -350,6 +372,39 @@ def _within_budget(path: Path, node, loc: tuple, total: int, budget: int | None)
                         "raise it with triangle_budget:)")
 
 
+# Mitsuba's direct integrator tests its shadow rays with ray_test, every surface opaque
+DIRECT_WITH_CUTOUTS = ("direct: the shaded reference cannot simulate alpha-tested casters "
+                       "(its shadow rays see every surface opaque); use effects: [shadow]")
+
+
+def _cut_out(path: Path, obj: Placed) -> bool:
+    """Whether the object has a cut-out: its ``alpha`` key, or a mesh file's own."""
+    return obj.alpha is not None or (isinstance(obj, MeshFile) and any(
+        k >= 0 for k in mesh_parts(resolve_mesh_path(path, obj), obj.up).part_cutouts))
+
+
+def _check_alpha(path: Path, node, scene_name: str, index: int, obj: Placed) -> None:
+    """The object's alpha texture readable (alpha_files.py), and a mesh file with alpha
+    carrying texture coordinates on every part; a ConfigError naming the key otherwise."""
+    loc = ("scenes", scene_name, "objects", index, "alpha")
+    if obj.alpha.texture is not None:
+        texture = resolve_texture_path(path, obj.alpha.texture)
+        try:
+            read_alpha_texture(texture)
+        except FileNotFoundError:
+            raise key_error(path, node, loc + ("texture",), f"no such file: {texture}") \
+                from None
+        except (OSError, ValueError) as e:
+            raise key_error(path, node, loc + ("texture",),
+                            getattr(e, "strerror", None) or str(e)) from None
+    if isinstance(obj, MeshFile):
+        parts = mesh_parts(resolve_mesh_path(path, obj), obj.up)
+        bare = [n for n, uv in zip(parts.names, parts.texcoords) if uv is None]
+        if bare:
+            raise key_error(path, node, loc, f"{obj.label} has no texture coordinates (part "
+                            f"{bare[0]!r}), so nothing to cut out by")
+
+
 def load_scenes(path: str | Path, *, triangle_budget: int | None = DEFAULT_TRIANGLE_BUDGET,
                 only=None) -> dict[str, Scene]:
     """Load and validate a scene file; mesh paths are resolved against the file's folder.
@@ -393,4 +448,8 @@ def check_scenes(path: str | Path, scenes: dict[str, Scene], names,
                                triangle_budget // copies)
                    if isinstance(obj, MeshFile) else obj.triangles())
             total += one * copies
+            if obj.alpha is not None:
+                _check_alpha(path, node, name, i, obj)
+            if "direct" in scene.effects and _cut_out(path, obj):
+                raise key_error(path, node, ("scenes", name, "effects"), DIRECT_WITH_CUTOUTS)
         _within_budget(path, node, ("scenes", name, "objects"), total, triangle_budget)

@@ -19,7 +19,7 @@ from .. import config as cfg
 from . import families
 from . import motion as motion_paths
 from . import topology
-from .alpha import AlphaMask
+from .alpha import QUAD_UV, AlphaMask, pattern_texture
 from ..machine.interrupt import raise_if_interrupted
 
 
@@ -276,16 +276,38 @@ def _base_mesh(obj) -> trimesh.Trimesh:
     raise TypeError(f"unknown object {obj!r}")
 
 
-def _object_parts(obj, source: Path | None) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """(name, vertices float64, faces int32) of one copy of the object, in its own frame: a
-    mesh file's parts (cached: harness.config.mesh_files), or trimesh's construction."""
+def _object_parts(obj, source: Path | None
+                  ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None,
+                                  AlphaMask | None]]:
+    """(name, vertices float64, faces int32, corners' texture coordinates or None, the file's
+    own cut-out or None) of one copy of the object, in its own frame: a mesh file's parts
+    (cached: harness.config.mesh_files), or trimesh's construction (a plane's texture
+    coordinates: alpha.QUAD_UV, its corners being a quad's)."""
     if isinstance(obj, cfg.MeshFile):
         mesh = cfg.mesh_parts(cfg.resolve_mesh_path(source or Path("."), obj), obj.up)
-        return [(f":{name}" if len(mesh.names) > 1 else "", v, f)
-                for name, v, f in zip(mesh.names, mesh.vertices, mesh.faces)]
+        own = [AlphaMask(texture, cutoff, f"{obj.label}: {name}")
+               for texture, cutoff, name in mesh.cutouts]
+        return [(f":{name}" if len(mesh.names) > 1 else "", v, f, uv,
+                 own[k] if k >= 0 else None)
+                for name, v, f, uv, k in zip(mesh.names, mesh.vertices, mesh.faces,
+                                             mesh.texcoords, mesh.part_cutouts)]
     base = _base_mesh(obj)
-    return [("", np.asarray(base.vertices, dtype=np.float64),
-             np.asarray(base.faces, dtype=np.int32))]
+    faces = np.asarray(base.faces, dtype=np.int32)
+    return [("", np.asarray(base.vertices, dtype=np.float64), faces,
+             QUAD_UV[faces] if isinstance(obj, cfg.Plane) else None, None)]
+
+
+def _alpha_mask(obj, source: Path | None) -> AlphaMask | None:
+    """The object's cut-out as its ``alpha`` key says (checked at load: cfg.check_scenes)."""
+    alpha = obj.alpha
+    if alpha is None:
+        return None
+    if alpha.texture is not None:
+        path = cfg.resolve_texture_path(source or Path("."), alpha.texture)
+        return AlphaMask(cfg.read_alpha_texture(path), alpha.cutoff, str(path))
+    width, height = alpha.size
+    return AlphaMask(pattern_texture(alpha.pattern, width, height), alpha.cutoff,
+                     f"pattern {alpha.pattern} {width}x{height}")
 
 
 FAMILY_ALBEDO = 0.8  # the objects' default
@@ -299,7 +321,8 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
         raise_if_interrupted()
         transform = _transform(obj)
         array = obj.array or cfg.Array()
-        for suffix, local, faces in pieces:
+        mask = _alpha_mask(obj, source)  # the object's alpha key: every part's cut-out
+        for suffix, local, faces, texcoords, own in pieces:
             vertices = trimesh.transformations.transform_points(local, transform)
             for ix in np.ndindex(*array.count):
                 offset = np.asarray(ix, dtype=float) * np.asarray(array.step)
@@ -309,10 +332,14 @@ def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
                     faces=faces,
                     albedo=obj.albedo,
                     object_index=index,
+                    texcoords=texcoords if (mask or own) is not None else None,
+                    alpha=mask or own,
                 ))
     if scene.family is not None:  # no object of its own: object motions never move it
-        parts += [MeshPart(f"{scene.family.kind}:{name}", vertices, faces, FAMILY_ALBEDO, -1)
-                  for name, vertices, faces in families.build(scene.family)]
+        mask = families.alpha_mask(scene.family.kind)
+        parts += [MeshPart(f"{scene.family.kind}:{name}", vertices, faces, FAMILY_ALBEDO, -1,
+                           texcoords, None if texcoords is None else mask)
+                  for name, vertices, faces, texcoords in families.build(scene.family)]
     return parts
 
 
@@ -338,8 +365,13 @@ def scene_key(scene: cfg.Scene, source: Path | None = None,
     ``description`` and the objects' names are labels and stay out, so rewording them keeps
     references and run ids. A still scene hashes as it did before scenes could move (no
     ``motion`` key), a moving one as before objects could (no ``motion.objects`` when none
-    move), a scene without a family as before families (no ``family`` key)."""
-    labels = {"description": True, "objects": {"__all__": {"name"}}}
+    move), a scene without a family as before families (no ``family`` key), an object without
+    a cut-out as before objects could have one (no ``alpha`` key); an alpha texture's bytes
+    are hashed like a mesh file's."""
+    # an object without alpha hashes as before objects could have one
+    labels = {"description": True, "objects": {
+        i: {"name"} if obj.alpha is not None else {"name", "alpha"}
+        for i, obj in enumerate(scene.objects)}}
     if scene.motion is None:
         labels["motion"] = True
     elif not scene.motion.objects:
@@ -351,6 +383,9 @@ def scene_key(scene: cfg.Scene, source: Path | None = None,
     for obj in scene.objects:
         if isinstance(obj, cfg.MeshFile):
             h.update(cfg.resolve_mesh_path(source or Path("."), obj).read_bytes())
+        if obj.alpha is not None and obj.alpha.texture is not None:
+            h.update(cfg.resolve_texture_path(source or Path("."), obj.alpha.texture)
+                     .read_bytes())
     if poses is not None:
         h.update(np.ascontiguousarray(poses, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]

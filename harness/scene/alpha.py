@@ -68,3 +68,25 @@ def sample_alpha(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     top = t[r0, c0] * (1 - fx) + t[r0, c1] * fx
     bottom = t[r1, c0] * (1 - fx) + t[r1, c1] * fx
     return top * (1 - fy) + bottom * fy
+
+
+# the texture coordinates of a quad's corners, in the order (-x, -y), (+x, -y), (+x, +y), (-x, +y)
+# of its own axes (a plane's, a card's): the image lies on it seen from +z, its first row
+# along +y, u from -x to +x
+QUAD_UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+
+
+def pattern_texture(pattern: str, width: int, height: int) -> np.ndarray:
+    """A procedural alpha texture (H, W) uint8, each texel 255 (there) or 0 (cut out), decided
+    at its centre: ``checker`` texel (i, j) there where i + j is even; ``bars`` columns j
+    even; ``leaf`` a pointed leaf along u (|v - 1/2| <= 0.45 sin(pi u)); ``disc`` the disc of
+    radius 0.45 about the centre. Under the rule, a checker's and bars' cut-outs at cutoff 1/2
+    are their texels' squares and columns exactly, for even sizes (bilinear between 0 and 1
+    crosses 1/2 half way between texel centres)."""
+    i, j = np.meshgrid(np.arange(height), np.arange(width), indexing="ij")
+    u, v = (j + 0.5) / width, (i + 0.5) / height
+    there = {"checker": (i + j) % 2 == 0,
+             "bars": j % 2 == 0,
+             "leaf": np.abs(v - 0.5) <= 0.45 * np.sin(np.pi * u),
+             "disc": (u - 0.5) ** 2 + (v - 0.5) ** 2 <= 0.45 ** 2}[pattern]
+    return np.where(there, 255, 0).astype(np.uint8)

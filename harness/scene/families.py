@@ -15,6 +15,9 @@ serve all sizes of a family.
   ridge with both roof planes (three faces on an edge), open columns, stairs, an arch and a
   fence of picket cards.
 - foliage: trees of many thin open cards (leaves) around a trunk: shadow-volume fill explodes.
+- cards: foliage as engines draw it: trees whose leaves are alpha-tested cards (a leaf
+  texture cuts each quad out, harness/scene/alpha.py) along branches; trunks and branches
+  opaque.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import config as cfg
+from .alpha import QUAD_UV, AlphaMask, pattern_texture
 
 TOLERANCE = 0.05
 GROUND = 20.0  # side of the ground square every family stands on
@@ -241,6 +245,21 @@ def architecture(triangles: int, rng: np.random.Generator) -> list[tuple[str, Me
 TRUNK_SECTIONS = 6
 
 
+def _quads(centre: np.ndarray, axis_u: np.ndarray, length: float, width: float,
+           rng: np.random.Generator) -> Mesh:
+    """Cards (two triangles each) centred at ``centre`` (N, 3), ``length`` along ``axis_u``
+    (N, 3, normalised here) and ``width`` across, turned at random about it; each card's four
+    corners in alpha.QUAD_UV's order."""
+    axis_u = axis_u / np.linalg.norm(axis_u, axis=1, keepdims=True)
+    axis_v = np.cross(axis_u, rng.normal(size=axis_u.shape))
+    axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
+    u, v = axis_u * length / 2, axis_v * width / 2
+    corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    faces = (quad[None] + 4 * np.arange(len(centre))[:, None, None]).reshape(-1, 3)
+    return corners.reshape(-1, 3), faces.astype(np.int32)
+
+
 def foliage(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
     trees = max(1, round(math.sqrt(triangles) / 4))
     cards = ((triangles - 2) // trees - 2 * TRUNK_SECTIONS) // 2
@@ -257,26 +276,98 @@ def foliage(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
         centre *= (crown * rng.uniform(0, 1, cards) ** (1 / 3)
                    / np.linalg.norm(centre, axis=1))[:, None]
         centre += [*centres[k], trunk_h + crown]
-        axis_u = rng.normal(size=(cards, 3))
-        axis_u /= np.linalg.norm(axis_u, axis=1, keepdims=True)
-        axis_v = np.cross(axis_u, rng.normal(size=(cards, 3)))
-        axis_v /= np.linalg.norm(axis_v, axis=1, keepdims=True)
-        u, v = axis_u * length / 2, axis_v * length / 8
-        corners = np.stack([centre - u - v, centre + u - v, centre + u + v, centre - u + v], 1)
-        quad = np.array([[0, 1, 2], [0, 2, 3]])
-        faces = (quad[None] + 4 * np.arange(cards)[:, None, None]).reshape(-1, 3)
-        parts.append((f"tree{k}", _merge([trunk, (corners.reshape(-1, 3),
-                                                   faces.astype(np.int32))])))
+        leaves = _quads(centre, rng.normal(size=(cards, 3)), length, length / 4, rng)
+        parts.append((f"tree{k}", _merge([trunk, leaves])))
     used = sum(len(f) for _, (_, f) in parts)
     return [("ground", _ground(*_receiver_cells(triangles - used)))] + parts
 
 
+# --- cards -------------------------------------------------------------------------------------
+
+BRANCHES, BRANCH_SECTIONS = 6, 4
+LEAF = ("leaf", 64, 0.5)  # the cards' cut-out: pattern, texels, cutoff
+
+
+def _segment(start, end, radius: float, sections: int) -> Mesh:
+    """An open tube from ``start`` to ``end``: 2 * sections triangles."""
+    start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
+    axis = end - start
+    side = np.cross(axis, [0.0, 0.0, 1.0] if abs(axis[2]) < 0.9 * np.linalg.norm(axis)
+                    else [1.0, 0.0, 0.0])
+    side *= radius / np.linalg.norm(side)
+    other = np.cross(axis, side) * (radius / np.linalg.norm(np.cross(axis, side)))
+
+    def place(u, v):
+        angle = 2 * np.pi * u[..., None]
+        return start + np.cos(angle) * side + np.sin(angle) * other + v[..., None] * axis
+
+    return _grid(sections, 1, place)
+
+
+def _cards_triangles_per_tree(cards: int) -> int:
+    return 2 * TRUNK_SECTIONS + BRANCHES * 2 * BRANCH_SECTIONS + 2 * cards
+
+
+def cards(triangles: int, rng: np.random.Generator) -> list[tuple[str, Mesh]]:
+    """Trees as ``foliage``'s, their leaves cut out of cards by LEAF, the cards spread along
+    BRANCHES branches from the trunk's top: per tree a part ``tree{k}`` (trunk and branches,
+    opaque) and a part ``cards{k}`` (the cards, each quad's corners in QUAD_UV's order)."""
+    # half foliage's trees in each direction: a tree's trunk and branches (60 triangles) take
+    # a quarter of the family at 10^3, under 2 % at 10^5
+    trees = max(1, round(math.sqrt(triangles) / 8))
+    per_tree = (triangles - 2) // trees
+    count = (per_tree - _cards_triangles_per_tree(0)) // 2
+    centres, cell = _layout(trees, rng, margin=0.5)
+    crown = 0.4 * cell
+    # the same leaf area per tree at every size; a card is length x length / 2, and the leaf
+    # covers about 57 % of it
+    length = crown * 2.4 / math.sqrt(max(count, 1))
+    parts = []
+    for k in range(trees):
+        trunk_h = crown * rng.uniform(1.2, 1.8)
+        top = np.array([*centres[k], trunk_h])
+        wood = [_tube((*centres[k], 0), 0.08 * crown, trunk_h, TRUNK_SECTIONS)]
+        heading = rng.normal(size=(BRANCHES, 3)) * [1, 1, 0.4] + [0, 0, 0.6]
+        heading /= np.linalg.norm(heading, axis=1, keepdims=True)
+        tips = top + heading * crown
+        wood += [_segment(top, tip, 0.03 * crown, BRANCH_SECTIONS) for tip in tips]
+        # cards along the branches, beyond their first quarter, turned at random about them
+        branch = rng.integers(BRANCHES, size=count)
+        along = rng.uniform(0.25, 1.0, count)[:, None]
+        centre = top + heading[branch] * crown * along + rng.normal(
+            scale=0.08 * crown, size=(count, 3))
+        along_branch = heading[branch] + rng.normal(scale=0.5, size=(count, 3))
+        parts += [(f"tree{k}", _merge(wood)),
+                  (f"cards{k}", _quads(centre, along_branch, length, length / 2, rng))]
+    used = sum(len(f) for _, (_, f) in parts)
+    return [("ground", _ground(*_receiver_cells(triangles - used)))] + parts
+
+
+def _cards_texcoords(name: str, faces: np.ndarray) -> np.ndarray | None:
+    """The corners' texture coordinates of a ``cards`` part (its quads' corners 0..3 are
+    QUAD_UV's), None for the opaque ones."""
+    return QUAD_UV[faces % 4] if name.startswith("cards") else None
+
+
 KINDS = {"tessellation": tessellation, "instancing": instancing,
-         "architecture": architecture, "foliage": foliage}
+         "architecture": architecture, "foliage": foliage, "cards": cards}
+TEXCOORDS = {"cards": _cards_texcoords}  # the families with cut-outs
 
 
-def build(family: cfg.Family) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """The family's parts as (name, vertices (V, 3) float32, faces (F, 3) int32)."""
+def alpha_mask(kind: str) -> AlphaMask | None:
+    """The cut-out of the family's parts that have texture coordinates (None: opaque)."""
+    if kind not in TEXCOORDS:
+        return None
+    pattern, texels, cutoff = LEAF
+    return AlphaMask(pattern_texture(pattern, texels, texels), cutoff,
+                     f"the {kind} family's {pattern} pattern")
+
+
+def build(family: cfg.Family
+          ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """The family's parts as (name, vertices (V, 3) float32, faces (F, 3) int32, corners'
+    texture coordinates (F, 3, 2) float32 of a cut-out part, else None)."""
     rng = np.random.default_rng(family.seed)
-    return [(name, vertices.astype(np.float32), faces)
+    texcoords = TEXCOORDS.get(family.kind, lambda name, faces: None)
+    return [(name, vertices.astype(np.float32), faces, texcoords(name, faces))
             for name, (vertices, faces) in KINDS[family.kind](family.triangles, rng)]

@@ -55,6 +55,9 @@ class Reference:
     variant: str
     cached: bool = False
     build_seconds: float = math.nan  # of it, building Mitsuba's scene (its BVH); NaN: not known
+    # shadow rays stopped at MAX_CUTOUT_HITS cut-out hits (counted occluded) when traced; a
+    # cached reference does not keep the count (-1)
+    bounded_rays: int = -1
 
 
 def cache_dir() -> Path:
@@ -108,14 +111,27 @@ def mitsuba_module(variant: str):
     return mi
 
 
-def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float):
-    mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False)
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float,
+          texcoords: np.ndarray | None = None, cutout: int | None = None):
+    """A Mitsuba mesh of these triangles. In a scene with cut-outs (``cutout`` given: the
+    index of the part's mask in ``scene.alpha_masks``, -1 for an opaque part) it carries the
+    per-face attribute ``face_cutout``, and a cut-out part its texture coordinates per vertex
+    (``texcoords`` (V, 2): its vertices unrolled per face corner by the caller)."""
+    mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False,
+                   has_vertex_texcoords=texcoords is not None)
     params = mi.traverse(mesh)
+    arrays = [("vertex_positions", np.asarray(vertices, np.float32)),
+              ("faces", np.asarray(faces, np.uint32))]
+    if texcoords is not None:
+        arrays.append(("vertex_texcoords", np.asarray(texcoords, np.float32)))
     # the buffers' own types: mi.Float in the JIT variants, dynamic arrays in scalar ones
-    for key, array in (("vertex_positions", np.asarray(vertices, np.float32)),
-                       ("faces", np.asarray(faces, np.uint32))):
+    for key, array in arrays:
         params[key] = type(params[key])(np.ascontiguousarray(array).ravel())
     params.update()
+    if cutout is not None:
+        column = np.full(len(faces), cutout, np.float32)
+        mesh.add_attribute(CUTOUT_ATTRIBUTE, 1, mi.Float(column) if _jit(mi) else
+                           column.tolist())
     mesh.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                    "value": [albedo] * 3}}))
     return mesh
@@ -171,9 +187,17 @@ def mitsuba_scene_dict(scene: BuiltScene, mi, samples: int, seed: int = 0) -> di
                 target=(light.position - origin + light.direction).tolist(),
                 up=_up_for(light.direction).tolist()),
         }
+    masks = {id(m): k for k, m in enumerate(scene.alpha_masks)}
     for i, part in enumerate(scene.parts):
         vertices = part.vertices.astype(np.float64) - origin
-        d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", vertices, part.faces, part.albedo)
+        if not scene.has_alpha:  # as before cut-outs: the opaque scenes' path, unchanged
+            d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", vertices, part.faces, part.albedo)
+        elif part.alpha is None:
+            d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", vertices, part.faces, part.albedo, cutout=-1)
+        else:  # unrolled: texture coordinates are per face corner
+            d[f"mesh{i}"] = _mesh(mi, f"mesh{i}", vertices[part.faces].reshape(-1, 3),
+                                  np.arange(3 * len(part.faces)).reshape(-1, 3), part.albedo,
+                                  part.texcoords.reshape(-1, 2), masks[id(part.alpha)])
     return d
 
 
@@ -184,8 +208,9 @@ def _up_for(direction: np.ndarray) -> np.ndarray:
 
 
 def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: int):
-    """(hit, occluded) of sample ``s`` of pixel (x, y): the primary ray through its
-    :func:`film_position` and the shadow ray from the hit.
+    """(hit, occluded, bounded) of sample ``s`` of pixel (x, y): the primary ray through its
+    :func:`film_position` and the shadow ray from the hit (bounded: stopped at
+    MAX_CUTOUT_HITS; always False in a scene without cut-outs).
 
     With a JIT variant ``x``, ``y`` and ``s`` are arrays, one lane per sample, and this is one
     Dr.Jit kernel, as Mitsuba's own ``mi.render`` lays out its wavefront; with ``scalar_rgb``
@@ -199,13 +224,137 @@ def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: i
     # the shadow ray needs only the hit point and the face normal
     si = mscene.ray_intersect(ray, ray_flags=mi.RayFlags.Empty, coherent=True)
     hit = si.is_valid()
+    shadow_ray = _toward_light(mi, scene, si)
+    if scene.has_alpha:
+        occluded, bounded = cutout_ray_test(mi, mscene, scene, shadow_ray, hit)
+        return hit, hit & occluded, hit & bounded
+    return hit, hit & mscene.ray_test(shadow_ray, coherent=True, active=hit), False
+
+
+def _toward_light(mi, scene: BuiltScene, si):
+    """The shadow ray from ``si``'s point, spawned past it (Mitsuba's offset along its
+    normal: no hit on its own surface), toward the light: from a receiver, and again from
+    each cut-out hit."""
+    import drjit as dr
+
     light = scene.light
     if light.type == "directional":
-        shadow_ray = si.spawn_ray(dr.opaque(mi.Vector3f, (-light.direction).tolist()))
-    else:
-        shadow_ray = si.spawn_ray_to(
-            dr.opaque(mi.Point3f, (light.position - mitsuba_origin(scene)).tolist()))
-    return hit, hit & mscene.ray_test(shadow_ray, coherent=True, active=hit)
+        return si.spawn_ray(dr.opaque(mi.Vector3f, (-light.direction).tolist()))
+    return si.spawn_ray_to(
+        dr.opaque(mi.Point3f, (light.position - mitsuba_origin(scene)).tolist()))
+
+
+def _jit(mi) -> bool:
+    import drjit as dr
+
+    return dr.is_jit_v(mi.Float)
+
+
+# Cut-outs (issue 48). Mitsuba's ray_test treats every surface as opaque; in a scene with
+# alpha-tested casters a shadow ray goes on past each hit where the sampling rule
+# (harness/scene/alpha.py) says the surface is cut out, and stops at the first hit where it
+# is there. At most MAX_CUTOUT_HITS cut-out hits are passed: a ray that passes that many is
+# counted as occluded (and counted: Reference.bounded_rays).
+CUTOUT_ATTRIBUTE = "face_cutout"
+MAX_CUTOUT_HITS = 64
+CUTOUT_VERSION = 1  # bump when the cut-out loop's definition changes (opaque scenes: no key)
+
+
+def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
+    """(occluded, bounded): whether ``ray`` meets a surface that is there under the scene's
+    cut-outs, and whether it was stopped at the bound (occluded then too): a bounded Dr.Jit
+    loop of ray_intersect (``scalar_rgb``: a Python loop, the rule in NumPy)."""
+    import drjit as dr
+
+    flags = mi.RayFlags.Minimal | mi.RayFlags.UV
+    if not _jit(mi):
+        for _ in range(MAX_CUTOUT_HITS if active else 0):
+            si = mscene.ray_intersect(ray, flags, False)
+            if not si.is_valid():
+                return False, False
+            mask = int(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si))
+            if mask < 0 or scene.alpha_masks[mask].opaque(np.array([si.uv.x, si.uv.y])):
+                return True, False
+            ray = _toward_light(mi, scene, si)
+        return bool(active), bool(active)
+    table = _cutout_table(mi, scene)
+
+    def going(ray, active, occluded, passed):
+        return active
+
+    def step(ray, active, occluded, passed):
+        si = mscene.ray_intersect(ray, flags, False, active)
+        found = active & si.is_valid()
+        mask = mi.Int32(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si, found))
+        cut = found & (mask >= 0)
+        there = found & (~cut | _there(mi, table, mask, si.uv, cut))
+        passed = dr.select(cut & ~there, passed + 1, passed)
+        active = cut & ~there & (passed < MAX_CUTOUT_HITS)
+        return (_toward_light(mi, scene, si), active, occluded | there, passed)
+
+    _, _, occluded, passed = dr.while_loop(
+        (ray, mi.Bool(active), dr.zeros(mi.Bool, dr.width(active)),
+         dr.zeros(mi.UInt32, dr.width(active))), going, step)
+    bounded = ~occluded & (passed >= MAX_CUTOUT_HITS)
+    return occluded | bounded, bounded
+
+
+@dataclass
+class _CutoutTable:
+    """The scene's cut-out textures for Dr.Jit: texels of all masks, one after another
+    (values 0..255), and per mask its first texel, width, height and cutoff."""
+
+    texels: object
+    first: object
+    width: object
+    height: object
+    cutoff: object
+
+
+def _cutout_table(mi, scene: BuiltScene) -> _CutoutTable:
+    masks = scene.alpha_masks
+    sizes = [m.texture.size for m in masks]
+    return _CutoutTable(
+        mi.Float(np.concatenate([m.texture.ravel() for m in masks]).astype(np.float32)),
+        mi.UInt32(np.cumsum([0] + sizes[:-1]).astype(np.uint32)),
+        mi.Float64(np.array([m.texture.shape[1] for m in masks], np.float64)),
+        mi.Float64(np.array([m.texture.shape[0] for m in masks], np.float64)),
+        mi.Float64(np.array([m.cutoff for m in masks], np.float64)))
+
+
+def _there(mi, table: _CutoutTable, mask, uv, active):
+    """The sampling rule (harness/scene/alpha.py's sample_alpha, step for step in float64):
+    whether the cut-out ``mask`` is there (alpha >= cutoff) at ``uv``."""
+    import drjit as dr
+
+    index = mi.UInt32(dr.maximum(mask, 0))
+    w = dr.gather(mi.Float64, table.width, index, active)
+    h = dr.gather(mi.Float64, table.height, index, active)
+    x = mi.Float64(uv.x) * w - 0.5
+    y = mi.Float64(uv.y) * h - 0.5
+    x0, y0 = dr.floor(x), dr.floor(y)
+    fx, fy = x - x0, y - y0
+    c0, r0 = _wrapped(x0, w), _wrapped(y0, h)
+    c1 = dr.select(c0 + 1 >= w, 0, c0 + 1)
+    r1 = dr.select(r0 + 1 >= h, 0, r0 + 1)
+    first = dr.gather(mi.UInt32, table.first, index, active)
+    width = mi.UInt32(w)
+
+    def texel(r, c):
+        at = first + mi.UInt32(r) * width + mi.UInt32(c)
+        return mi.Float64(dr.gather(mi.Float, table.texels, at, active)) / 255.0
+
+    top = texel(r0, c0) * (1 - fx) + texel(r0, c1) * fx
+    bottom = texel(r1, c0) * (1 - fx) + texel(r1, c1) * fx
+    return top * (1 - fy) + bottom * fy >= dr.gather(mi.Float64, table.cutoff, index, active)
+
+
+def _wrapped(i, n):
+    """``i`` mod ``n`` in [0, n) for whole float64 numbers (NumPy's np.mod)."""
+    import drjit as dr
+
+    r = i - dr.floor(i / n) * n
+    return dr.select(r >= n, r - n, dr.select(r < 0, r + n, r))
 
 
 def film_position(mi, scene: BuiltScene, x, y, s, samples: int, seed: int):
@@ -290,8 +439,10 @@ def _visibility(hits: np.ndarray, shadowed: np.ndarray) -> np.ndarray:
     return np.where(hits > 0, lit, np.float32(1))
 
 
-def trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
-    """(V, covered) as (H, W) arrays.
+def trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int,
+                     counts: dict | None = None):
+    """(V, covered) as (H, W) arrays; ``counts["bounded_rays"]``, when ``counts`` is given:
+    the shadow rays stopped at MAX_CUTOUT_HITS (0 without cut-outs).
 
     JIT variants: one lane per sample, a pixel's samples in adjacent lanes (a SIMD packet of
     primary rays then covers one pixel), each lane adding its hit and its occlusion to its
@@ -306,8 +457,13 @@ def trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
         lane = dr.arange(mi.UInt32, w * h * samples)
         count = dr.opaque(mi.UInt32, samples)
         x, y = _strip_pixels(mi, lane // count, w, h)
-        hit, occluded = _trace_samples(mi, mscene, scene, x, y, lane % count, samples, seed)
+        hit, occluded, bounded = _trace_samples(mi, mscene, scene, x, y, lane % count,
+                                                samples, seed)
         tally = dr.zeros(mi.UInt64, w * h)
+        stopped = dr.zeros(mi.UInt32, 1)
+        if scene.has_alpha:
+            dr.scatter_add(stopped, dr.select(bounded, mi.UInt32(1), 0), mi.UInt32(0),
+                           mode=dr.ReduceMode.Local)
         # a pixel's samples share a SIMD packet: reduced in the packet, one atomic add each
         dr.scatter_add(tally, dr.select(hit, mi.UInt64(1), 0) +
                        dr.select(occluded, mi.UInt64(1 << 32), 0), y * dr.opaque(mi.UInt32, w) + x,
@@ -315,19 +471,26 @@ def trace_visibility(mi, mscene, scene: BuiltScene, samples: int, seed: int):
         x, y = _strip_pixels(mi, dr.arange(mi.UInt32, w * h), w, h)
         covered = dr.empty(mi.Bool, w * h)
         dr.scatter(covered, _covered(mi, mscene, scene, x, y), y * dr.opaque(mi.UInt32, w) + x)
-        dr.eval(tally, covered)
+        dr.eval(tally, covered, stopped)
+        if counts is not None:
+            counts["bounded_rays"] = int(np.asarray(stopped)[0])
         tally = np.asarray(tally, np.uint64).reshape(h, w)
         return (_visibility(tally & 0xFFFFFFFF, tally >> np.uint64(32)),
                 np.asarray(covered, bool).reshape(h, w))
     hits, shadowed, covered = (np.zeros((h, w), np.int64), np.zeros((h, w), np.int64),
                                np.empty((h, w), bool))
+    stopped = 0
     for y in range(h):
         for x in range(w):
             for s in range(samples):
-                hit, occluded = _trace_samples(mi, mscene, scene, x, y, s, samples, seed)
+                hit, occluded, bounded = _trace_samples(mi, mscene, scene, x, y, s, samples,
+                                                        seed)
                 hits[y, x] += bool(hit)
                 shadowed[y, x] += bool(occluded)
+                stopped += bool(bounded)
             covered[y, x] = bool(_covered(mi, mscene, scene, x, y))
+    if counts is not None:
+        counts["bounded_rays"] = stopped
     return _visibility(hits, shadowed), covered
 
 
@@ -336,6 +499,9 @@ def cache_key(scene: BuiltScene, samples: int, seed: int) -> str:
 
     text = f"{scene.key}|{scene.width}x{scene.height}|{samples}|{seed}|{mi.__version__}|" \
            f"{CACHE_VERSION}|{'direct' in scene.config.effects}"
+    if scene.has_alpha:  # the textures' bytes (a mesh file's own, a family's) and the loop's
+        text += f"|cutouts {CUTOUT_VERSION} {MAX_CUTOUT_HITS}|" + "|".join(
+            m.digest for m in scene.alpha_masks)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -424,7 +590,8 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
     try:
         mscene = mi.load_dict(mitsuba_scene_dict(scene, mi, samples, seed))
         built = time.perf_counter() - start
-        visibility, covered = trace_visibility(mi, mscene, scene, samples, seed)
+        counts: dict = {}
+        visibility, covered = trace_visibility(mi, mscene, scene, samples, seed, counts)
         direct = None
         if "direct" in scene.config.effects:
             direct = np.asarray(mi.render(mscene, spp=samples, seed=seed), np.float32)[..., :3]
@@ -432,7 +599,11 @@ def compute_reference(scene: BuiltScene, *, samples: int = 16, seed: int = 0,
         cause = " ".join(str(e).split()) or type(e).__name__
         raise UntraceableSceneError(f"scene {scene.name!r} cannot be traced: {cause}") from e
     ref = Reference(visibility, covered, direct, time.perf_counter() - start, variant,
-                    build_seconds=built)
+                    build_seconds=built, bounded_rays=counts["bounded_rays"])
+    if ref.bounded_rays:
+        warnings.warn(f"scene {scene.name!r}: {ref.bounded_rays} shadow rays passed "
+                      f"{MAX_CUTOUT_HITS} cut-out hits and were counted occluded",
+                      RuntimeWarning, stacklevel=2)
     if use_cache:
         _write_cache(path, ref)
         if damaged:

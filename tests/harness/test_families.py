@@ -16,13 +16,14 @@ from harness.scene import build_scene
 SIZES = {"tessellation": [100, 1000, 10_000, 100_000],
          "instancing": [1000, 10_000, 100_000],
          "architecture": [1000, 10_000, 100_000],
-         "foliage": [1000, 10_000, 100_000]}
+         "foliage": [1000, 10_000, 100_000],
+         "cards": [1000, 10_000, 100_000]}
 CAMERA = {"position": [0, -19, 13], "target": [0, 0, 0], "up": [0, 0, 1], "yfov": 50,
           "near": 0.5, "far": 100}
 
 
 def _triangles(family: config.Family) -> int:
-    return sum(len(faces) for _, _, faces in families.build(family))
+    return sum(len(faces) for _, _, faces, _ in families.build(family))
 
 
 @pytest.mark.parametrize("kind,triangles",
@@ -41,13 +42,32 @@ def test_two_builds_are_bit_equal_and_the_seed_changes_the_layout(kind):
     scene, and so its references and run ids, from one run to the next."""
     family = config.Family(kind=kind, triangles=SIZES[kind][1])
     first, second = families.build(family), families.build(family)
-    assert [name for name, _, _ in first] == [name for name, _, _ in second]
-    for (_, v1, f1), (_, v2, f2) in zip(first, second):
+    assert [name for name, *_ in first] == [name for name, *_ in second]
+    for (_, v1, f1, _), (_, v2, f2, _) in zip(first, second):
         assert v1.dtype == np.float32 and v1.tobytes() == v2.tobytes()
         assert f1.tobytes() == f2.tobytes()
     other = families.build(family.model_copy(update={"seed": 1}))
     if kind != "tessellation":  # a box and a plane: nothing random
-        assert any(a.tobytes() != b.tobytes() for (_, a, _), (_, b, _) in zip(first, other))
+        assert any(a.tobytes() != b.tobytes() for (_, a, *_), (_, b, *_) in zip(first, other))
+
+
+@pytest.mark.parametrize("triangles", [1000, 1_000_000])
+def test_cards_are_cut_out_quads_of_leaf_texture_coordinates(triangles):
+    """The cards family's cut-out parts are whole quads (two triangles on four corners) whose
+    corners carry a plane's texture coordinates, and they hold most of its triangles; the
+    trunks, branches and ground are opaque. Catches cards without texture coordinates, a
+    corner order that maps the leaf across a diagonal, and a family of opaque cards."""
+    scene = build_scene("c", _scene({"kind": "cards", "triangles": triangles}))
+    assert scene.has_alpha and len(scene.alpha_masks) == 1
+    cut = scene.face_mask == 0
+    assert 0.7 < cut.mean() < 1  # trunks, branches and the ground stay opaque
+    uv = scene.face_texcoords[cut].reshape(-1, 2, 3, 2)  # quads: two triangles each
+    np.testing.assert_array_equal(uv[:, 0], [[[0, 1], [1, 1], [1, 0]]] * len(uv))
+    np.testing.assert_array_equal(uv[:, 1], [[[0, 1], [1, 0], [0, 0]]] * len(uv))
+    corners = scene.triangles[cut].reshape(-1, 2, 3, 3).astype(np.float64)
+    # a quad is a parallelogram: its first corner + its third = its second + its fourth
+    np.testing.assert_allclose(corners[:, 0, 0] + corners[:, 0, 2],
+                               corners[:, 0, 1] + corners[:, 1, 2], atol=1e-5)
 
 
 def _scene(family: dict, **extra) -> config.Scene:
