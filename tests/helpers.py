@@ -367,3 +367,69 @@ def render_once(technique, frame):
     technique.release()
     reset_gl_state()
     return output
+
+
+# A checker-cut card over a ground plane under a directional light at 45 degrees: the card
+# (CARD_SIZE square, its plane z = CARD_HEIGHT, centred at x = CARD_HEIGHT) casts its shadow
+# around the origin, where the camera looks straight down; the card itself is outside the
+# view (the camera sees ground only).
+CARD_HEIGHT, CARD_SIZE = 2.5, 2.0
+CARD_LIGHT = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2.0)
+
+
+def checker(texels: int, cells: int) -> np.ndarray:
+    """A (texels, texels) uint8 checker of ``cells`` x ``cells`` squares, 255 and 0, the
+    top-left one 255."""
+    index = np.arange(texels) * cells // texels
+    return np.where((index[:, None] + index[None, :]) % 2 == 0, 255, 0).astype(np.uint8)
+
+
+def card_uv(points: np.ndarray) -> np.ndarray:
+    """The card's texture coordinates (glTF: u right, v down the image) at points in its
+    plane (..., 2 or 3): u along x, v down y, (0, 0) at its corner of least x and most y."""
+    half = CARD_SIZE / 2
+    return np.stack([(points[..., 0] - (CARD_HEIGHT - half)) / CARD_SIZE,
+                     (half - points[..., 1]) / CARD_SIZE], axis=-1)
+
+
+def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
+                     card_copies: int = 1):
+    """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
+    at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
+    the other, 1e-3 apart, sharing one cut-out)."""
+    import dataclasses
+
+    from harness.scene.alpha import AlphaMask
+
+    card = {"shape": "plane", "size": [CARD_SIZE, CARD_SIZE]}
+    scene = {"resolution": [size, size],
+             "camera": {"position": [0, 0, 6], "target": [0, 0, 0], "up": [0, 1, 0],
+                        "yfov": 40, "near": 0.1, "far": 100},
+             "light": {"type": "directional", "direction": CARD_LIGHT.tolist()},
+             "effects": ["shadow"],
+             "objects": [{"shape": "plane", "size": [10, 10]}] + [
+                 {**card, "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + 1e-3 * k]}
+                 for k in range(card_copies)]}
+    built = build_scene("alpha_card", config.Scene(**scene))
+    mask = AlphaMask(texture, cutoff, "checker")
+    parts = [built.parts[0]] + [
+        dataclasses.replace(p, alpha=mask,
+                            texcoords=card_uv(p.vertices[p.faces]).astype(np.float32))
+        for p in built.parts[1:]]
+    return dataclasses.replace(built, parts=parts)
+
+
+def card_visibility(position: np.ndarray, covered: np.ndarray, texture: np.ndarray,
+                    cutoff: float) -> np.ndarray:
+    """The exact visibility of ground points (G-buffer positions (H, W, 3)) under the card,
+    in float64 and independently of every technique: each point moved along the light to the
+    card's plane, inside the card and its alpha by harness.scene.alpha.sample_alpha at or
+    above the cutoff: 0, else 1. Uncovered pixels: 1."""
+    from harness.scene.alpha import sample_alpha
+
+    p = position.astype(np.float64)
+    s = (CARD_HEIGHT - p[..., 2]) / -CARD_LIGHT[2]  # distance along the light to the plane
+    hit = p - s[..., None] * CARD_LIGHT
+    inside = np.all(np.abs(hit[..., :2] - [CARD_HEIGHT, 0.0]) <= CARD_SIZE / 2, axis=-1)
+    opaque = sample_alpha(texture, card_uv(hit)) >= cutoff
+    return np.where(covered & inside & opaque, 0.0, 1.0)

@@ -51,11 +51,22 @@ EMPTY_DEPTH = 3.0e38
 
 class _DepthMapResources:
     """What every light depth map holds: its framebuffer, the program drawing linear depth, and
-    the light frusta it is drawn with (``frusta``)."""
+    the light frusta it is drawn with (``frusta``). On a scene with alpha-tested casters the
+    program cuts them out (``ALPHA_TEST``: a cut-out texel writes no depth) unless ``cutouts``
+    is False (a technique that ignores them draws them opaque)."""
 
-    def __init__(self, fbo: Framebuffer):
+    def __init__(self, frame: Frame, fbo: Framebuffer, cutouts: bool):
         self.fbo = fbo
-        self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
+        self.alpha_test = cutouts and frame.scene.has_alpha
+        defines = {"ALPHA_TEST": 1} if self.alpha_test else {}
+        self.program = Technique.shader(__file__, "light_depth.vert.glsl",
+                                        "light_depth.frag.glsl", **defines)
+
+    def use_program(self, frame: Frame, frustum: LightFrustum) -> None:
+        """Bind the depth program for ``frustum`` (and the cut-outs' textures it reads)."""
+        self.program.use().set(light_view=frustum.view, light_proj=frustum.proj)
+        if self.alpha_test:
+            frame.bind_alpha(self.program, 0)
 
     @property
     def mem_bytes(self) -> int:
@@ -74,10 +85,11 @@ class _DepthMapResources:
 class LightDepthMap(_DepthMapResources):
     """A res x res linear-depth map (R32F) rendered from the scene's light."""
 
-    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
+    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None,
+                 cutouts: bool = True):
         self.res = res
         self.frustum = frustum or fit_light(frame.scene, res)
-        super().__init__(Framebuffer(res, res, (GL.GL_R32F,), depth=True))
+        super().__init__(frame, Framebuffer(res, res, (GL.GL_R32F,), depth=True), cutouts)
 
     @property
     def frusta(self) -> list[LightFrustum]:
@@ -90,7 +102,7 @@ class LightDepthMap(_DepthMapResources):
         self.fbo.clear((EMPTY_DEPTH,) * 4)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthFunc(GL.GL_LESS)
-        self.program.use().set(light_view=self.frustum.view, light_proj=self.frustum.proj)
+        self.use_program(frame, self.frustum)
         frame.draw_scene()
 
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame,
@@ -127,8 +139,8 @@ class CubeDepthMap(_DepthMapResources):
         self.res, self.size = res, res + 2 * guard
         self.half_tan = self.size / res
         self.fit(frame)
-        super().__init__(Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
-                                     layers=len(CUBE_AXES)))
+        super().__init__(frame, Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
+                                            layers=len(CUBE_AXES)), cutouts=True)
 
     @property
     def frusta(self) -> list[LightFrustum]:
@@ -145,7 +157,7 @@ class CubeDepthMap(_DepthMapResources):
                 self.fbo.colors[0].clear(EMPTY_DEPTH, layer)
                 self.fbo.attach_layer(layer)
                 self.fbo.depth.clear_depth_stencil(0)
-                self.program.use().set(light_view=face.view, light_proj=face.proj)
+                self.use_program(frame, face)
                 frame.draw_scene()
 
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame) -> dict:

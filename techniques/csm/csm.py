@@ -221,6 +221,7 @@ class CascadedShadowMap(Technique):
                "lambda": ("float", 0.0, 1.0)}
     bias_terms = BIAS_TERMS
     Params = _Params
+    alpha_casters = True  # each cascade's depth pass cuts them out (light_maps)
     declines_lights = {
         "spot": "cascades split a directional light's map; a spot light has one frustum",
         "point": "cascades split a directional light's map; a point light shines every way, "

@@ -158,6 +158,7 @@ class MultipleDepthShadowMap(Technique):
     # the selection window besides the bias terms: how far a depth may come from its cell
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING, "q": ("choice", WINDOW_SAMPLES)}
     bias_terms = BIAS_TERMS
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
     declines_lights = {"point": "it has no cube-map path: its selection pass and PCF(k, n) read "
                                 "square windows of one light frustum's map"}
 

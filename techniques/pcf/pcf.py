@@ -99,6 +99,7 @@ class PercentageCloserFiltering(Technique):
                "res_factor": ("log", 0.125, 4.0), "min_size": ("log", 0.125, 4.0)}
     bias_terms = ("bias_min", "bias_max", "slope_bias", "normal_offset")
     declines_lights = {}  # a point light gets a cube map: six faces
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

@@ -73,6 +73,7 @@ class RayTraced(Technique):
     # quality knob: rays per pixel (the one way a point-sampled exact method buys time)
     quality_knobs = {"mask_res": ("quarter", "half", "full")}
     declines_lights = {}  # a ray reaches a point light as a spot light
+    alpha_casters = True  # any-hit: a hit on a cut-out texel does not end the ray
     rivals = ("sv", "silhouette")  # the exact volumes and the map with exact edges
 
     class Params(TechniqueParams):
@@ -104,8 +105,9 @@ class RayTraced(Technique):
         if p.backend == "embree":
             self.embree = EmbreeRays(frame)
             return
-        self.levels = levels.TwoLevelBvh(parts, p.build, p.leaf_size)
-        defines = {"STACK_SIZE": self.levels.stack_size}
+        masks = frame.scene.alpha_masks
+        self.levels = levels.TwoLevelBvh(parts, p.build, p.leaf_size, masks)
+        defines = {"STACK_SIZE": self.levels.stack_size, **({"ALPHA_TEST": 1} if masks else {})}
         self.trace_program = ComputeProgram(Path(__file__).parent / "rt_trace.comp.glsl", defines)
         self.counter = counters.RayCounter(self.mask.width, self.mask.height, defines)
 
@@ -128,7 +130,7 @@ class RayTraced(Technique):
             return
         program.use()
         unit = frame.bind_gbuffer(program)
-        self.levels.bind(program, unit)
+        frame.bind_alpha(program, self.levels.bind(program, unit))
         program.set(divisor=self.divisor, camera_position=frame.camera.position,
                     **self._light_uniforms(frame))
         GL.glBindImageTexture(0, self.mask.id, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_R32F)
@@ -170,8 +172,11 @@ class RayTraced(Technique):
         with frame.measure("visibility"):
             self._visibility_pass(frame)
         extra["bvh_bytes"] = bvh_bytes
+        # the mask's reads, and per ray each alpha test's four texels (counted, gl backend)
+        alpha_fetches = 4 * extra.get("alpha_tests_per_ray", 0.0) / self.divisor ** 2
         return frame.output(mem_bytes=bvh_bytes + self.mask.nbytes,
-                            fetches_per_px=1 if self.divisor == 1 else 4, extra=extra)
+                            fetches_per_px=(1 if self.divisor == 1 else 4) + alpha_fetches,
+                            extra=extra)
 
     def release(self) -> None:
         for resource in (self.trace_program, getattr(self, "counter", None), self.mask,

@@ -65,6 +65,7 @@ class ShadowMap(Technique):
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
     declines_lights = {}  # a point light gets a cube map: six faces
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)

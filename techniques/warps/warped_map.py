@@ -101,6 +101,7 @@ class WarpedShadowMap(Technique):
     Params = WarpParams
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
     bias_terms = BIAS_TERMS
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
     declines_lights = {"point": "its warp reparameterises one light frustum, and a point light "
                                 "shines every way"}
 
