@@ -372,9 +372,11 @@ def render_once(technique, frame):
 # A checker-cut card over a ground plane under a directional light at 45 degrees: the card
 # (CARD_SIZE square, its plane z = CARD_HEIGHT, centred at x = CARD_HEIGHT) casts its shadow
 # around the origin, where the camera looks straight down; the card itself is outside the
-# view (the camera sees ground only).
+# view (the camera sees ground only). CARD_POINT_LIGHT: a point light on the same diagonal,
+# whose card shadow also falls around the origin (1.25 times the card's size).
 CARD_HEIGHT, CARD_SIZE = 2.5, 2.0
 CARD_LIGHT = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2.0)
+CARD_POINT_LIGHT = np.array([12.5, 0.0, 12.5])
 
 
 def checker(texels: int, cells: int) -> np.ndarray:
@@ -393,10 +395,11 @@ def card_uv(points: np.ndarray) -> np.ndarray:
 
 
 def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
-                     card_copies: int = 1):
+                     card_copies: int = 1, point_light: bool = False):
     """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
     at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
-    the other, 1e-3 apart, sharing one cut-out)."""
+    the other, 1e-3 apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
+    is the opaque scene's with the cut-out's digest (its own reference cache entry)."""
     import dataclasses
 
     from harness.scene.alpha import AlphaMask
@@ -405,7 +408,8 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
     scene = {"resolution": [size, size],
              "camera": {"position": [0, 0, 6], "target": [0, 0, 0], "up": [0, 1, 0],
                         "yfov": 40, "near": 0.1, "far": 100},
-             "light": {"type": "directional", "direction": CARD_LIGHT.tolist()},
+             "light": ({"type": "point", "position": CARD_POINT_LIGHT.tolist()} if point_light
+                       else {"type": "directional", "direction": CARD_LIGHT.tolist()}),
              "effects": ["shadow"],
              "objects": [{"shape": "plane", "size": [10, 10]}] + [
                  {**card, "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + 1e-3 * k]}
@@ -416,20 +420,27 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
         dataclasses.replace(p, alpha=mask,
                             texcoords=card_uv(p.vertices[p.faces]).astype(np.float32))
         for p in built.parts[1:]]
-    return dataclasses.replace(built, parts=parts)
+    return dataclasses.replace(built, parts=parts, key=f"{built.key}-alpha-{mask.digest}")
+
+
+def card_crossing(position: np.ndarray, point_light: bool = False):
+    """Where each ground point's ray to the light crosses the card's plane (float64 (..., 3)),
+    and whether inside the card."""
+    p = position.astype(np.float64)
+    to_light = CARD_POINT_LIGHT - p if point_light else np.broadcast_to(-CARD_LIGHT, p.shape)
+    s = (CARD_HEIGHT - p[..., 2]) / to_light[..., 2]
+    hit = p + s[..., None] * to_light
+    return hit, np.all(np.abs(hit[..., :2] - [CARD_HEIGHT, 0.0]) <= CARD_SIZE / 2, axis=-1)
 
 
 def card_visibility(position: np.ndarray, covered: np.ndarray, texture: np.ndarray,
-                    cutoff: float) -> np.ndarray:
+                    cutoff: float, point_light: bool = False) -> np.ndarray:
     """The exact visibility of ground points (G-buffer positions (H, W, 3)) under the card,
-    in float64 and independently of every technique: each point moved along the light to the
-    card's plane, inside the card and its alpha by harness.scene.alpha.sample_alpha at or
-    above the cutoff: 0, else 1. Uncovered pixels: 1."""
+    in float64 and independently of every technique: each point moved along its ray to the
+    light to the card's plane, inside the card and its alpha by
+    harness.scene.alpha.sample_alpha at or above the cutoff: 0, else 1. Uncovered pixels: 1."""
     from harness.scene.alpha import sample_alpha
 
-    p = position.astype(np.float64)
-    s = (CARD_HEIGHT - p[..., 2]) / -CARD_LIGHT[2]  # distance along the light to the plane
-    hit = p - s[..., None] * CARD_LIGHT
-    inside = np.all(np.abs(hit[..., :2] - [CARD_HEIGHT, 0.0]) <= CARD_SIZE / 2, axis=-1)
+    hit, inside = card_crossing(position, point_light)
     opaque = sample_alpha(texture, card_uv(hit)) >= cutoff
     return np.where(covered & inside & opaque, 0.0, 1.0)

@@ -1,0 +1,126 @@
+"""Alpha-tested casters in the techniques (issue 48): a card cut out by a checker over a ground
+plane (tests/helpers.py's alpha_card_scene), each technique's V against the exact visibility
+computed in the test (card_visibility: NumPy float64, each ground point moved along its ray to
+the card's plane, sample_alpha there against the cutoff). The camera sees the ground only."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from harness.technique import Frame, registry
+
+from helpers import (alpha_card_scene, card_crossing, card_visibility, checker, render_once)
+
+CHECKER = checker(8, 8)  # one texel a square: the cut runs along texel edges and corners
+
+
+@pytest.fixture(scope="module")
+def card_frames(gl_context):
+    """The card scene's frame under the directional light and under the point light."""
+    frames = {point: Frame(alpha_card_scene(CHECKER, point_light=point))
+              for point in (False, True)}
+    yield frames
+    for frame in frames.values():
+        frame.release()
+
+
+def agreement(technique: str, frame, point_light: bool, **params) -> float:
+    """Fraction of the covered pixels where the technique's V is within 0.5 of the exact."""
+    cls = registry.get(technique)
+    v = render_once(cls(cls.Params(**params)), frame).visibility
+    g = frame.arrays
+    exact = card_visibility(g.position, g.covered, CHECKER, 0.5, point_light)
+    return float((np.abs(v - exact) <= 0.5)[g.covered].mean())
+
+
+@pytest.mark.parametrize("backend", ["gl", "embree"])
+def test_rt_agrees_with_the_exact_cut_out(card_frames, backend):
+    """rt's any-hit rays pass the cut-out texels: V agrees with the exact visibility on at
+    least 99.5 % of the pixels (the issue's bar; it measured 100 %), directional and point
+    light. The card opaque would put 10.6 % of the pixels wrong. Catches rt ignoring alpha
+    (a hit on a cut-out texel ending the ray: 89.4 %), the barycentric weights taken in
+    another order, or the embree loop stopping at the first hit."""
+    for point, frame in card_frames.items():
+        if backend == "embree" and point:
+            continue  # the same loop; one light is enough for the slower backend
+        assert agreement("rt", frame, point, backend=backend) >= 0.995
+
+
+@pytest.mark.parametrize("technique", ["sm", "pcf", "mdsm", "csm", "psm", "lispsm", "gmnpr"])
+def test_map_techniques_cut_out_in_their_depth_pass(card_frames, technique):
+    """Every map technique's depth pass discards the cut-out texels: at map 2048, V agrees
+    with the exact visibility on at least 98 % of the pixels (sm 99.9 %, the rest at least
+    99.8 %, measured). Catches the discard inverted (the holes cast and the card's squares
+    do not), or the cut-out corners given other vertices' positions."""
+    assert agreement(technique, card_frames[False], False, res=2048) >= 0.98
+
+
+@pytest.mark.parametrize("technique", ["sm", "pcf"])
+def test_cube_maps_cut_out_in_every_face(card_frames, technique):
+    """A point light's cube map cuts the card out as the single map does (sm 99.0 %, pcf
+    99.5 % at faces of 2048, measured). Catches the cube's faces drawn without the cut-outs'
+    textures bound, or without ALPHA_TEST."""
+    assert agreement(technique, card_frames[True], True, res=2048) >= 0.98
+
+
+def test_an_opaque_cut_out_changes_no_bit(gl_context):
+    """A cut-out whose texture is all 255 (nothing cut) leaves sm's and rt's V bit-equal to the
+    same scene with no cut-out at all: the alpha path adds a test, never a change of depth or
+    of the ray. Catches the cut-out corners given other vertices' positions, or the discard
+    inverted (everything cut)."""
+    solid = alpha_card_scene(np.full((4, 4), 255, np.uint8), size=128)
+    plain = dataclasses.replace(solid, parts=[dataclasses.replace(p, alpha=None, texcoords=None)
+                                              for p in solid.parts])
+    assert solid.has_alpha and not plain.has_alpha
+    for technique in ("sm", "rt"):
+        cls = registry.get(technique)
+        v = []
+        for scene in (solid, plain):
+            frame = Frame(scene)
+            v.append(render_once(cls(cls.Params()), frame).visibility)
+            frame.release()
+        np.testing.assert_array_equal(v[0], v[1])
+
+
+def test_rt_counts_one_alpha_test_per_ray_through_the_card(card_frames):
+    """rt counts each ray's alpha tests: one per ray that crosses the card (its plane inside
+    the card, from the test's own geometry), so alpha_tests_per_ray is that share of the
+    traced rays (to the rays exactly on the card's border), and fetches_per_px is the mask's
+    one read plus four texels per test. Catches the count left at 0, counted per triangle
+    tested rather than per hit, or left out of fetches_per_px."""
+    frame = card_frames[False]
+    cls = registry.get("rt")
+    out = render_once(cls(cls.Params()), frame)
+    g = frame.arrays
+    _, inside = card_crossing(g.position)
+    share = inside[g.covered].mean()
+    assert out.extra["alpha_tests_per_ray"] == pytest.approx(share, abs=2e-3)
+    assert out.fetches_per_px == pytest.approx(1 + 4 * out.extra["alpha_tests_per_ray"])
+
+
+@pytest.mark.parametrize("technique", ["sv", "ptsv", "silhouette"])
+def test_edge_techniques_decline_unless_told_to_ignore(evaluate, technique):
+    """sv, ptsv and silhouette decline a scene with cut-outs: skipped, the reason in error,
+    the row's alpha column `declined`; with alpha: ignore they run and the row says
+    `ignored`. Catches the declining check removed (the run would be ok and unmarked) or
+    ignore not honoured (still skipped)."""
+    scene = alpha_card_scene(CHECKER, size=48)
+    declined = evaluate(scene, technique, samples=1).row
+    assert declined["status"] == "skipped"
+    assert "alpha-tested casters" in declined["error"] and "alpha: ignore" in declined["error"]
+    assert declined["alpha"] == "declined"
+    ignored = evaluate(scene, technique, {"alpha": "ignore"}, samples=1).row
+    assert ignored["status"] == "ok" and ignored["alpha"] == "ignored"
+
+
+def test_alpha_column_says_tested_or_none(evaluate):
+    """A technique that treats cut-outs is `tested` on a scene with them and `none` on one
+    without. Catches the column filled from the technique alone, not the scene."""
+    scene = alpha_card_scene(CHECKER, size=48)
+    plain = dataclasses.replace(scene, parts=[dataclasses.replace(p, alpha=None, texcoords=None)
+                                              for p in scene.parts])
+    assert evaluate(scene, "sm", samples=1).row["alpha"] == "tested"
+    assert evaluate(plain, "sm", samples=1).row["alpha"] == "none"
