@@ -11,9 +11,8 @@ float alpha_texel(int first, int width, ivec2 texel) {
     return float(texelFetch(alpha_texels, first + texel.y * width + texel.x).r) / 255.0;
 }
 
-// The cut-out `mask`'s alpha at `uv`, in [0, 1].
-float sample_alpha(int mask, vec2 uv) {
-    uvec4 entry = texelFetch(alpha_table, mask);
+// The alpha at `uv`, in [0, 1], of the cut-out whose alpha_table texel is `entry`.
+float sample_alpha_of(uvec4 entry, vec2 uv) {
     ivec2 size = ivec2(entry.yz);
     vec2 p = uv * vec2(size) - 0.5;
     vec2 low = floor(p), f = p - low;
@@ -26,7 +25,16 @@ float sample_alpha(int mask, vec2 uv) {
     return mix(top, bottom, f.y);
 }
 
+// The cut-out `mask`'s alpha at `uv`, in [0, 1].
+float sample_alpha(int mask, vec2 uv) {
+    return sample_alpha_of(texelFetch(alpha_table, mask), uv);
+}
+
 // Whether the surface is cut out at `uv` (alpha below the cutoff); mask < 0 is opaque.
 bool cut_out(int mask, vec2 uv) {
-    return mask >= 0 && sample_alpha(mask, uv) < uintBitsToFloat(texelFetch(alpha_table, mask).w);
+    if (mask < 0) {
+        return false;
+    }
+    uvec4 entry = texelFetch(alpha_table, mask);
+    return sample_alpha_of(entry, uv) < uintBitsToFloat(entry.w);
 }
