@@ -124,3 +124,28 @@ def test_alpha_column_says_tested_or_none(evaluate):
                                               for p in scene.parts])
     assert evaluate(scene, "sm", samples=1).row["alpha"] == "tested"
     assert evaluate(plain, "sm", samples=1).row["alpha"] == "none"
+
+
+def test_a_plugin_declines_cut_outs_unless_it_says_it_treats_them():
+    """A technique that declares nothing (a plugin written before cut-outs) declines a scene
+    with them, its reason without the `alpha: ignore` hint it has no parameter for; one that
+    declares ``alpha_casters = True`` runs (`tested`). Catches a default that runs every
+    technique on cut-outs, or a hint naming a parameter the plugin does not have."""
+    from harness.technique import NotApplicable, Technique, TechniqueParams
+
+    class Plugin(Technique):
+        name = "plugin"
+
+        class Params(TechniqueParams):
+            res: int = 16
+
+    class Treats(Plugin):
+        alpha_casters = True
+
+    scene = alpha_card_scene(CHECKER, size=16)
+    assert Plugin.alpha_handling(Plugin.Params(), scene) == "declined"
+    with pytest.raises(NotApplicable, match="alpha-tested casters") as declined:
+        Plugin.check_alpha(Plugin.Params(), scene)
+    assert "alpha: ignore" not in str(declined.value)
+    assert Treats.alpha_handling(Treats.Params(), scene) == "tested"
+    Treats.check_alpha(Treats.Params(), scene)

@@ -2,14 +2,11 @@
 // side (fragment and compute shaders alike): bilinear at mip level 0, repeat wrap, texel
 // (row i, column j) centred at ((j + 0.5) / W, (i + 0.5) / H), uv's (0, 0) the first texel
 // row's left edge. The four texels are read explicitly (no hardware filtering), so every
-// driver gives sample_alpha's value up to float32 rounding. harness/gl/alpha.py's
+// driver gives sample_alpha's value up to float32 rounding: in one fetch, each texel stored
+// with its right, lower and lower-right neighbours (wrapped). harness/gl/alpha.py's
 // AlphaTextures binds the two buffers.
-uniform usamplerBuffer alpha_texels;  // every cut-out's texels, R8UI, row by row
+uniform usamplerBuffer alpha_texels;  // every cut-out's texel quads, RGBA8UI, row by row
 uniform usamplerBuffer alpha_table;   // per cut-out: (first texel, width, height, cutoff bits)
-
-float alpha_texel(int first, int width, ivec2 texel) {
-    return float(texelFetch(alpha_texels, first + texel.y * width + texel.x).r) / 255.0;
-}
 
 // The alpha at `uv`, in [0, 1], of the cut-out whose alpha_table texel is `entry`.
 float sample_alpha_of(uvec4 entry, vec2 uv) {
@@ -18,11 +15,8 @@ float sample_alpha_of(uvec4 entry, vec2 uv) {
     vec2 low = floor(p), f = p - low;
     // repeat: low mod size, exact for integer-valued floats below 2^24
     ivec2 c0 = ivec2(low - vec2(size) * floor(low / vec2(size)));
-    ivec2 c1 = ivec2(c0.x + 1 == size.x ? 0 : c0.x + 1, c0.y + 1 == size.y ? 0 : c0.y + 1);
-    int first = int(entry.x), w = size.x;
-    float top = mix(alpha_texel(first, w, c0), alpha_texel(first, w, ivec2(c1.x, c0.y)), f.x);
-    float bottom = mix(alpha_texel(first, w, ivec2(c0.x, c1.y)), alpha_texel(first, w, c1), f.x);
-    return mix(top, bottom, f.y);
+    vec4 quad = vec4(texelFetch(alpha_texels, int(entry.x) + c0.y * size.x + c0.x)) / 255.0;
+    return mix(mix(quad.x, quad.y, f.x), mix(quad.z, quad.w, f.x), f.y);
 }
 
 // The cut-out `mask`'s alpha at `uv`, in [0, 1].
