@@ -22,8 +22,7 @@ from harness.truth import reference
 
 # rt_offset.glsl's rule, the same constants
 OFFSET_ULPS, ORIGIN, FLOAT_SCALE = 256, 1.0 / 32.0, 1.0 / 65536.0
-# cut-out hits one ray passes before the rest count as opaque: deeper than any layering of
-# cards the shipped scenes stack along a ray
+# cut-out hits one ray passes before the rest count as opaque
 MAX_CUTOUT_HITS = 64
 
 
@@ -165,6 +164,7 @@ class _Cutouts:
         self.first_face = np.cumsum([0] + [len(p.faces) for p in scene.parts])
         self.masks, self.face_mask = scene.alpha_masks, scene.face_mask
         self.texcoords = scene.face_texcoords.astype(np.float64)
+        self.normals = scene.face_normals
 
     def any_hit(self, ray_test, origin, direction, maxt) -> np.ndarray:
         """Whether each ray meets a triangle where it is not cut out (``ray_test``: the
@@ -176,8 +176,10 @@ class _Cutouts:
         for _ in range(MAX_CUTOUT_HITS):
             o, d = origin[rays], direction[rays]
             pi = self.mscene.ray_intersect_preliminary(mitsuba_rays(mi, o, d, maxt[rays]))
-            valid = np.asarray(pi.is_valid(), bool)
-            shape = np.asarray(dr.reinterpret_array(mi.UInt32, pi.shape), np.int64)
+            shape = dr.reinterpret_array(mi.UInt32, pi.shape)
+            dr.eval(pi.t, pi.prim_index, pi.prim_uv, shape)  # one kernel, not one per read
+            valid = np.isfinite(np.asarray(pi.t, np.float64))
+            shape = np.asarray(shape, np.int64)
             part = np.where(valid, self.part_of[np.minimum(shape, len(self.part_of) - 1)], -1)
             face = self.first_face[np.maximum(part, 0)] + np.asarray(pi.prim_index, np.int64)
             mask = np.where(part >= 0, self.face_mask[np.where(part >= 0, face, 0)], -1)
@@ -190,12 +192,16 @@ class _Cutouts:
                 cut[sel] = ~self.masks[m].opaque(uv)
             hit[rays[valid & ~cut]] = True
             t = np.asarray(pi.t, np.float64)
-            rays, t = rays[cut], t[cut]
+            rays, t, face = rays[cut], t[cut], face[cut]
             if not len(rays):
                 return hit
-            # on from just past the cut-out hit (rt_offset.glsl's offset along the ray)
-            past = offset_ray(origin[rays] + (t[:, None] * direction[rays]).astype(np.float32),
-                              direction[rays])
+            # on from just past the cut-out hit: rt_offset.glsl's offset along the face's
+            # normal turned the way the ray goes (along the ray, a grazing ray met the same
+            # face again and again)
+            d = direction[rays]
+            normal = self.normals[face]
+            normal = np.where((np.sum(normal * d, axis=1) < 0)[:, None], -normal, normal)
+            past = offset_ray(origin[rays] + (t[:, None] * d).astype(np.float32), normal)
             maxt[rays] -= np.linalg.norm(past.astype(np.float64) - origin[rays], axis=1)
             origin[rays] = past
         hit[rays] = ray_test(origin[rays], direction[rays], maxt[rays])
