@@ -61,6 +61,47 @@ class _DepthMapResources:
         defines = {"ALPHA_TEST": 1} if self.alpha_test else {}
         self.program = Technique.shader(__file__, "light_depth.vert.glsl",
                                         "light_depth.frag.glsl", **defines)
+        self.counted = (None, 0)  # what the alpha tests were last counted for, and how many
+
+    def render(self, frame: Frame) -> None:
+        raise NotImplementedError
+
+    def alpha_tests(self, frame: Frame) -> int:
+        """Fragments of the map's depth pass that ran the alpha test (4 texels each), counted
+        untimed by drawing the map again with a counting program (the same depths), whenever
+        the light or the geometry moved: a diagnostic, as rt's counted rays. 0 without
+        cut-outs."""
+        if not self.alpha_test:
+            return 0
+        key = b"".join(np.asarray(m, np.float64).tobytes() for f in self.frusta
+                       for m in (f.view, f.proj)) + frame.part_poses.tobytes()
+        if key == self.counted[0]:
+            return self.counted[1]
+        drawing, scratch = self.program, frame.new_meter()
+        counter = GL.glGenBuffers(1)
+        try:
+            self.program = Technique.shader(__file__, "light_depth.vert.glsl",
+                                            "light_depth.frag.glsl", ALPHA_TEST=1,
+                                            COUNT_ALPHA_TESTS=1)
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+            GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 4, np.zeros(1, np.uint32),
+                            GL.GL_DYNAMIC_READ)
+            GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, counter)
+            scratch.new_frame(measuring=False)  # its passes are timed nowhere
+            with frame.metered(scratch):
+                self.render(frame)
+            GL.glMemoryBarrier(GL.GL_ATOMIC_COUNTER_BARRIER_BIT)
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+            tests = int(np.frombuffer(GL.glGetBufferSubData(GL.GL_ATOMIC_COUNTER_BUFFER, 0, 4),
+                                      np.uint32)[0])
+        finally:
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
+            GL.glDeleteBuffers(1, [counter])
+            self.program.release()
+            self.program = drawing
+            scratch.release()
+        self.counted = (key, tests)
+        return tests
 
     def use_program(self, frame: Frame, frustum: LightFrustum) -> None:
         """Bind the depth program for ``frustum`` (and the cut-outs' textures it reads)."""
@@ -168,6 +209,14 @@ class CubeDepthMap(_DepthMapResources):
                     light_position=frame.scene.light.position, map_res=float(self.size),
                     light_is_ortho=False, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, first.view))
+
+
+def alpha_fetches_per_px(frame: Frame, *maps: _DepthMapResources) -> float:
+    """The alpha texels the maps' depth passes read (4 per alpha test, see
+    :meth:`_DepthMapResources.alpha_tests`), per shaded (covered) pixel: what the cut-outs add
+    to a map technique's ``fetches_per_px``."""
+    covered = int(frame.arrays.covered.sum())
+    return 4 * sum(m.alpha_tests(frame) for m in maps) / max(covered, 1)
 
 
 # Depths and G-buffer positions are float32: far from the origin their rounding alone makes a

@@ -16,7 +16,7 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
+from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
                                           MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms,
                                           depth_precision)
 
@@ -316,7 +316,8 @@ class CascadedShadowMap(Technique):
                              slope_bias=p.slope_bias, normal_offset=p.normal_offset,
                              depth_precision=precision, **bias_uniforms(p.bias_mode))
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
-        return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps), fetches_per_px=1,
+        return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps),
+                            fetches_per_px=1 + alpha_fetches_per_px(frame, *self.maps),
                             nonfinite=sum(m.nonfinite for m in self.maps),
                             extra=self.columns(), maps={"cascade": self.cascade_map(frame)})
 

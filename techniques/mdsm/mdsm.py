@@ -17,7 +17,7 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling)
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
@@ -249,7 +249,7 @@ class MultipleDepthShadowMap(Technique):
         shaded = int(frame.arrays.covered.sum())
         return frame.output(
             mem_bytes=base.mem_bytes + (self.selection.mem_bytes if self.selection else 0),
-            fetches_per_px=p.k, nonfinite=base.nonfinite,
+            fetches_per_px=p.k + alpha_fetches_per_px(frame, base), nonfinite=base.nonfinite,
             extra={"select_fetches": q * p.res * p.res, "select_fetches_per_cell": q,
                        "shaded_px": shaded, "shading_fetches": shaded * p.k})
 

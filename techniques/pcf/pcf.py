@@ -11,7 +11,7 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, BiasMode,
+from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, BiasMode,
                                           FilteredShadowMap, Sampling)
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
@@ -139,7 +139,8 @@ class PercentageCloserFiltering(Technique):
             jitter=p.sampling == "jitter", seed=p.seed, bias_min=p.bias_min,
             bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset,
             bias_mode=p.bias_mode))
-        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=p.k,
+        fetches = p.k + alpha_fetches_per_px(frame, self.passes.map)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
                             nonfinite=self.passes.map.nonfinite)
 
     def release(self) -> None:

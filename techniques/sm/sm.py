@@ -8,7 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, MapShading, bias_uniforms)
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
@@ -84,7 +84,9 @@ class ShadowMap(Technique):
         p = self.params
         self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset,
                            **bias_uniforms(p.bias_mode))
-        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
+        # one depth read per pixel, and the depth pass's alpha texels where casters are cut out
+        fetches = 1 + alpha_fetches_per_px(frame, self.passes.map)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
                             nonfinite=self.passes.map.nonfinite)
 
     def release(self) -> None:

@@ -18,7 +18,7 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
@@ -173,7 +173,8 @@ class WarpedShadowMap(Technique):
         if self.columns["outside_pct"] > 0:
             warnings.append(f"{self.columns['outside_pct']:.2f}% of visible receivers fall "
                             "outside the warped map")
-        return frame.output(mem_bytes=self.map.mem_bytes, fetches_per_px=p.k,
+        return frame.output(mem_bytes=self.map.mem_bytes,
+                            fetches_per_px=p.k + alpha_fetches_per_px(frame, self.map),
                             nonfinite=self.map.nonfinite + metrics.nonfinite(self.transform.clip),
                             extra=dict(self.columns), warnings=warnings,
                             maps={"pixels_per_texel_log2": self.alias_log2})

@@ -149,3 +149,26 @@ def test_a_plugin_declines_cut_outs_unless_it_says_it_treats_them():
     assert "alpha: ignore" not in str(declined.value)
     assert Treats.alpha_handling(Treats.Params(), scene) == "tested"
     Treats.check_alpha(Treats.Params(), scene)
+
+
+def test_sm_counts_the_depth_pass_alpha_texels(card_frames):
+    """sm's fetches_per_px adds the depth pass's alpha texels: four per fragment of the card
+    in the light's map, per covered pixel. The card's fragments are counted here from the
+    map's own frustum: its corners projected into the map, the texel centres inside (NumPy).
+    Catches the count left out, or counting every fragment (the ground's too)."""
+    from harness.scene.transforms import fit_light
+
+    frame = card_frames[False]
+    cls = registry.get("sm")
+    res = 256
+    technique = cls(cls.Params(res=res))
+    out = render_once(technique, frame)
+    f = fit_light(frame.scene, res)  # the map's frustum (a function of the scene and res)
+    card = frame.scene.parts[1]
+    corners = np.c_[card.vertices, np.ones(len(card.vertices))] @ (f.proj @ f.view).T
+    texels = (corners[:, :2] / corners[:, 3:] + 1) / 2 * res  # map coordinates, texels
+    centres = np.stack(np.meshgrid(np.arange(res) + 0.5, np.arange(res) + 0.5), -1)
+    lo, hi = texels.min(axis=0), texels.max(axis=0)  # the card is a rectangle in the map
+    inside = np.all((centres > lo) & (centres < hi), axis=-1).sum()
+    covered = frame.arrays.covered.sum()
+    assert out.fetches_per_px == pytest.approx(1 + 4 * inside / covered, rel=1e-3)
