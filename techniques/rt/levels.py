@@ -25,11 +25,13 @@ CUTOUT_BYTES = 32  # two RGBA32F texels: the corners' texture coordinates, the c
 INSTANCE_BYTES = 64  # four RGBA32F texels
 
 
-def bound_bytes(triangles: int) -> int:
+def bound_bytes(triangles: int, cutouts: bool = False) -> int:
     """Bytes the bottom levels may take for ``triangles``, whatever the builder: every
-    triangle's texels and a binary tree's most nodes (one triangle per leaf). The budget
-    check refuses a scene on this before building anything."""
-    return triangles * TRIANGLE_BYTES + bvh.max_records(triangles) * bvh.RECORD_BYTES
+    triangle's texels (with ``cutouts``, its texture coordinates' too) and a binary tree's
+    most nodes (one triangle per leaf). The budget check refuses a scene on this before
+    building anything."""
+    per_triangle = TRIANGLE_BYTES + (CUTOUT_BYTES if cutouts else 0)
+    return triangles * per_triangle + bvh.max_records(triangles) * bvh.RECORD_BYTES
 
 
 def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):

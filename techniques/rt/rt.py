@@ -86,7 +86,7 @@ class RayTraced(Technique):
     @classmethod
     def check_scene(cls, params, scene) -> None:
         triangles = sum(len(part.faces) for part in scene.parts)
-        bound = levels.bound_bytes(triangles)
+        bound = levels.bound_bytes(triangles, scene.has_alpha)
         if bound > params.budget_mib * 2**20:
             raise ValueError(f"budget_mib: {triangles:,} triangles could take "
                              f"{bound / 2**20:.0f} MiB of BVH, over the budget of "
