@@ -377,6 +377,7 @@ def render_once(technique, frame):
 CARD_HEIGHT, CARD_SIZE = 2.5, 2.0
 CARD_LIGHT = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2.0)
 CARD_POINT_LIGHT = np.array([12.5, 0.0, 12.5])
+CARD_GAP = 1e-3  # between copies of the card stacked along z
 
 
 def checker(texels: int, cells: int) -> np.ndarray:
@@ -398,7 +399,7 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
                      card_copies: int = 1, point_light: bool = False):
     """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
     at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
-    the other, 1e-3 apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
+    the other, CARD_GAP apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
     is the opaque scene's with the cut-out's digest (its own reference cache entry)."""
     import dataclasses
 
@@ -412,7 +413,7 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
                        else {"type": "directional", "direction": CARD_LIGHT.tolist()}),
              "effects": ["shadow"],
              "objects": [{"shape": "plane", "size": [10, 10]}] + [
-                 {**card, "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + 1e-3 * k]}
+                 {**card, "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + CARD_GAP * k]}
                  for k in range(card_copies)]}
     built = build_scene("alpha_card", config.Scene(**scene))
     mask = AlphaMask(texture, cutoff, "checker")
@@ -423,12 +424,12 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
     return dataclasses.replace(built, parts=parts, key=f"{built.key}-alpha-{mask.digest}")
 
 
-def card_crossing(position: np.ndarray, point_light: bool = False):
-    """Where each ground point's ray to the light crosses the card's plane (float64 (..., 3)),
-    and whether inside the card."""
+def card_crossing(position: np.ndarray, point_light: bool = False, copy: int = 0):
+    """Where each ground point's ray to the light crosses the plane of the card's ``copy``
+    (float64 (..., 3)), and whether inside that card."""
     p = position.astype(np.float64)
     to_light = CARD_POINT_LIGHT - p if point_light else np.broadcast_to(-CARD_LIGHT, p.shape)
-    s = (CARD_HEIGHT - p[..., 2]) / to_light[..., 2]
+    s = (CARD_HEIGHT + CARD_GAP * copy - p[..., 2]) / to_light[..., 2]
     hit = p + s[..., None] * to_light
     return hit, np.all(np.abs(hit[..., :2] - [CARD_HEIGHT, 0.0]) <= CARD_SIZE / 2, axis=-1)
 

@@ -97,9 +97,10 @@ class EmbreeRays:
             self.params.update()
         self.poses = poses
 
-    def trace(self, frame, mask, divisor: int, light: dict, camera_position) -> None:
+    def trace(self, frame, mask, divisor: int, light: dict, camera_position) -> dict:
         """The mask (GL rows, bottom first) from one ray per mask texel (V = 0 and no ray
-        where the visible side faces away from the light)."""
+        where the visible side faces away from the light). Returns what the rays counted:
+        on a scene with cut-outs, ``alpha_tests_per_ray`` (the any-hit loop's alpha tests)."""
         mi = self.mi
         with frame.measure("readback"):
             g = frame.gbuffer.read()
@@ -112,11 +113,14 @@ class EmbreeRays:
             facing, origin, direction, maxt = shadow_rays(
                 g.position[pick][covered], g.normal[pick][covered], light["directional"],
                 light["light"], camera_position)
-            hit = np.zeros(len(origin), bool)
+            hit, counted = np.zeros(len(origin), bool), {}
             if len(origin):  # Dr.Jit aborts the process on a trace of no rays
                 o = (origin.astype(np.float64) - self.shift).astype(np.float32)
-                hit = (self._ray_test(o, direction, maxt) if self.cutouts is None else
-                       self.cutouts.any_hit(self._ray_test, o, direction, maxt))
+                if self.cutouts is None:
+                    hit = self._ray_test(o, direction, maxt)
+                else:
+                    hit, tests = self.cutouts.any_hit(self._ray_test, o, direction, maxt)
+                    counted["alpha_tests_per_ray"] = round(tests / len(origin), 3)
             lit = np.zeros(int(covered.sum()), np.float32)
             lit[facing] = np.where(hit, 0.0, 1.0)
             v = np.ones(covered.shape, np.float32)
@@ -127,6 +131,7 @@ class EmbreeRays:
             GL.glTexSubImage2D(GL.GL_TEXTURE_2D, 0, 0, 0, mask.width, mask.height, GL.GL_RED,
                                GL.GL_FLOAT, np.ascontiguousarray(v))
             GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        return counted
 
     def _ray_test(self, origin, direction, maxt) -> np.ndarray:
         """Whether each ray (float32 (N, 3) origins in Mitsuba's coordinates, unit
@@ -166,11 +171,12 @@ class _Cutouts:
         self.texcoords = scene.face_texcoords.astype(np.float64)
         self.normals = scene.face_normals
 
-    def any_hit(self, ray_test, origin, direction, maxt) -> np.ndarray:
+    def any_hit(self, ray_test, origin, direction, maxt) -> tuple[np.ndarray, int]:
         """Whether each ray meets a triangle where it is not cut out (``ray_test``: the
-        opaque test, for the rays left after MAX_CUTOUT_HITS cut-out hits)."""
+        opaque test, for the rays left after MAX_CUTOUT_HITS cut-out hits), and the alpha
+        tests made."""
         mi, dr = self.mi, self.dr
-        hit = np.zeros(len(origin), bool)
+        hit, tests = np.zeros(len(origin), bool), 0
         rays = np.arange(len(origin))
         origin, maxt = np.asarray(origin, np.float32), np.asarray(maxt, np.float64)
         for _ in range(MAX_CUTOUT_HITS):
@@ -186,6 +192,7 @@ class _Cutouts:
             b = np.asarray(pi.prim_uv, np.float64).T.reshape(-1, 2)
             weights = np.column_stack([1.0 - b.sum(axis=1), b])
             cut = np.zeros(len(rays), bool)
+            tests += int(np.count_nonzero(mask >= 0))
             for m in np.unique(mask[mask >= 0]):
                 sel = mask == m
                 uv = np.einsum("nc,nck->nk", weights[sel], self.texcoords[face[sel]])
@@ -194,7 +201,7 @@ class _Cutouts:
             t = np.asarray(pi.t, np.float64)
             rays, t, face = rays[cut], t[cut], face[cut]
             if not len(rays):
-                return hit
+                return hit, tests
             # on from just past the cut-out hit: rt_offset.glsl's offset along the face's
             # normal turned the way the ray goes (along the ray, a grazing ray met the same
             # face again and again)
@@ -205,4 +212,4 @@ class _Cutouts:
             maxt[rays] -= np.linalg.norm(past.astype(np.float64) - origin[rays], axis=1)
             origin[rays] = past
         hit[rays] = ray_test(origin[rays], direction[rays], maxt[rays])
-        return hit
+        return hit, tests

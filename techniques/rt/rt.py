@@ -161,8 +161,8 @@ class RayTraced(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         extra = {}
         if self.embree is not None:
-            self.embree.trace(frame, self.mask, self.divisor, self._light_uniforms(frame),
-                              frame.camera.position)
+            extra = self.embree.trace(frame, self.mask, self.divisor,
+                                      self._light_uniforms(frame), frame.camera.position)
             bvh_bytes = 0
         else:
             with frame.measure("trace"):
@@ -172,7 +172,7 @@ class RayTraced(Technique):
         with frame.measure("visibility"):
             self._visibility_pass(frame)
         extra["bvh_bytes"] = bvh_bytes
-        # the mask's reads, and per ray each alpha test's four texels (counted, gl backend)
+        # the mask's reads, and per ray each alpha test's four texels
         alpha_fetches = 4 * extra.get("alpha_tests_per_ray", 0.0) / self.divisor ** 2
         return frame.output(mem_bytes=bvh_bytes + self.mask.nbytes,
                             fetches_per_px=(1 if self.divisor == 1 else 4) + alpha_fetches,
