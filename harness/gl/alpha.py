@@ -2,9 +2,9 @@
 the sampling rule of :mod:`harness.scene.alpha`): every mask's texels in one RGBA8UI buffer
 texture, row by row, each with its right, lower and lower-right neighbours (repeat wrap: the
 four texels a bilinear sample reads, in one fetch), and a table with one RGBA32UI texel per
-mask (its first texel, width, height, the cutoff's float bits). Buffer textures and explicit texel reads, rather than a
-texture array and the sampler's filtering, so fragment and compute shaders read them the same
-way on every driver and masks of any size share one binding."""
+mask (its first texel, width, height, the cutoff's float bits). Buffer textures and explicit
+texel reads, rather than a texture array and the sampler's filtering, so fragment and compute
+shaders read them the same way on every driver and masks of any size share one binding."""
 
 from __future__ import annotations
 

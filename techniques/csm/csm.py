@@ -16,9 +16,9 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
-                                          MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms,
-                                          depth_precision)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
+                                          MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
+                                          alpha_fetches_per_px, bias_uniforms, depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay

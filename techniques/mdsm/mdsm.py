@@ -17,8 +17,9 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling,
+                                          alpha_fetches_per_px)
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
 

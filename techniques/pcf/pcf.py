@@ -11,8 +11,9 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, BiasMode,
-                                          FilteredShadowMap, Sampling)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS,
+                                          BiasMode, FilteredShadowMap, Sampling,
+                                          alpha_fetches_per_px)
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
 

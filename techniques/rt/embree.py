@@ -101,7 +101,6 @@ class EmbreeRays:
         """The mask (GL rows, bottom first) from one ray per mask texel (V = 0 and no ray
         where the visible side faces away from the light). Returns what the rays counted:
         on a scene with cut-outs, ``alpha_tests_per_ray`` (the any-hit loop's alpha tests)."""
-        mi = self.mi
         with frame.measure("readback"):
             g = frame.gbuffer.read()
         with frame.measure("trace"):

@@ -8,8 +8,9 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, MapShading, bias_uniforms)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, MapShading, alpha_fetches_per_px,
+                                          bias_uniforms)
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 

@@ -18,8 +18,9 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, alpha_fetches_per_px, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
+                                          MAX_TEXELS, BiasMode, LightDepthMap,
+                                          alpha_fetches_per_px, bias_uniforms)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
