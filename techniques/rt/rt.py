@@ -37,7 +37,11 @@ class RayTraced(Technique):
     Benthin and Wald 2013's watertight triangle test) in the timed ``trace`` pass;
     ``backend: embree`` traces the same rays on the CPU with Mitsuba's ``ray_test``
     (``embree``), its G-buffer read-back, trace and V upload in timed passes, moving objects'
-    parts as Mitsuba instances moved in the timed ``tlas`` pass.
+    parts as Mitsuba instances moved in the timed ``tlas`` pass. Alpha-tested casters: a hit
+    on a cut-out texel does not end the ray (``alpha_test.glsl``'s rule at the hit's texture
+    coordinates in the traversal; on the embree backend a loop that goes on past it), and
+    each ray's alpha tests are counted (``alpha_tests_per_ray``, four texels each in
+    ``fetches_per_px``).
 
     A pixel whose visible side faces away from the light gets V = 0 and no ray (it receives
     no light; such pixels are never compared). The origin of each ray is the G-buffer point

@@ -31,6 +31,8 @@ class ShadowMap(Technique):
     the receiver plane extrapolated to the texel's centre (``receiver_plane``), or the depth
     where the light ray through the texel's centre meets the point's tangent plane
     (``adaptive``, Dou et al. 2014: no constant and no slope term, a rounding epsilon only).
+    Alpha-tested casters are cut out in the depth pass (``light_maps``: a cut-out texel writes
+    no depth), whose alpha texels ``fetches_per_px`` counts per shaded pixel.
 
     =================  ================================================  =======  ===========
     Parameter          Meaning                                           Default  Range
