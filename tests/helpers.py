@@ -396,11 +396,12 @@ def card_uv(points: np.ndarray) -> np.ndarray:
 
 
 def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
-                     card_copies: int = 1, point_light: bool = False):
+                     card_copies: int = 1, point_light: bool = False, motion: dict | None = None):
     """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
     at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
     the other, CARD_GAP apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
-    is the opaque scene's with the cut-out's digest (its own reference cache entry)."""
+    is the opaque scene's with the cut-out's digest (its own reference cache entry). ``motion``:
+    the scene's motion (the cards are objects ``card0``, ``card1``, ...)."""
     import dataclasses
 
     from harness.scene.alpha import AlphaMask
@@ -413,8 +414,11 @@ def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
                        else {"type": "directional", "direction": CARD_LIGHT.tolist()}),
              "effects": ["shadow"],
              "objects": [{"shape": "plane", "size": [10, 10]}] + [
-                 {**card, "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + CARD_GAP * k]}
+                 {**card, "name": f"card{k}",
+                  "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + CARD_GAP * k]}
                  for k in range(card_copies)]}
+    if motion:
+        scene["motion"] = motion
     built = build_scene("alpha_card", config.Scene(**scene))
     mask = AlphaMask(texture, cutoff, "checker")
     parts = [built.parts[0]] + [
