@@ -449,3 +449,52 @@ def card_visibility(position: np.ndarray, covered: np.ndarray, texture: np.ndarr
     hit, inside = card_crossing(position, point_light)
     opaque = sample_alpha(texture, card_uv(hit)) >= cutoff
     return np.where(covered & inside & opaque, 0.0, 1.0)
+
+
+# The technique contract run by hand, its GL objects counted before and after.
+GL_NAME_RANGE = range(1, 2001)
+
+
+def live_gl_names() -> dict[str, set[int]]:
+    """The GL names alive now, by object kind (textures, framebuffers, programs, buffers, VAOs)."""
+    from OpenGL import GL
+
+    checks = {"texture": GL.glIsTexture, "framebuffer": GL.glIsFramebuffer,
+              "program": GL.glIsProgram, "buffer": GL.glIsBuffer,
+              "vertex array": GL.glIsVertexArray}
+    return {kind: {i for i in GL_NAME_RANGE if is_live(i)} for kind, is_live in checks.items()}
+
+
+def leaked(before: dict[str, set[int]], after: dict[str, set[int]]) -> dict[str, list[int]]:
+    return {kind: sorted(after[kind] - before[kind]) for kind in after
+            if after[kind] - before[kind]}
+
+
+def run_contract(cls, scene, **params):
+    """prepare, update, two measured renders, release, as the runner does (``params`` over the
+    defaults); asserts that no GL object outlives the technique and the frame. Returns
+    (outputs, passes), or (None, None) when the technique does not apply to the scene."""
+    from harness.technique import NotApplicable
+
+    before = live_gl_names()
+    frame = Frame(scene)
+    technique = cls(cls.Params(**params))
+    outputs, passes = [], None
+    try:
+        try:
+            technique.prepare(frame)
+            technique.update(frame)
+        except NotApplicable:
+            outputs = None
+        else:
+            for _ in range(2):
+                frame.meter.new_frame(True)
+                outputs.append(technique.render(frame))
+            passes = frame.meter.passes()
+    finally:
+        technique.release()  # also after NotApplicable: the runner releases every technique
+        frame.release()
+        reset_gl_state()
+    gone = leaked(before, live_gl_names())
+    assert not gone, f"{cls.name} leaks GL objects on {scene.name}: {gone}"
+    return outputs, passes

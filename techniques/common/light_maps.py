@@ -62,6 +62,7 @@ class _DepthMapResources:
         self.program = Technique.shader(__file__, "light_depth.vert.glsl",
                                         "light_depth.frag.glsl", **defines)
         self.counted = (None, 0)  # what the alpha tests were last counted for, and how many
+        self.counting = None  # the counting program, made when first needed
 
     def render(self, frame: Frame) -> None:
         raise NotImplementedError
@@ -77,12 +78,14 @@ class _DepthMapResources:
                        for m in (f.view, f.proj)) + frame.part_poses.tobytes()
         if key == self.counted[0]:
             return self.counted[1]
+        if self.counting is None:
+            self.counting = Technique.shader(__file__, "light_depth.vert.glsl",
+                                             "light_depth.frag.glsl", ALPHA_TEST=1,
+                                             COUNT_ALPHA_TESTS=1)
         drawing, scratch = self.program, frame.new_meter()
         counter = GL.glGenBuffers(1)
         try:
-            self.program = Technique.shader(__file__, "light_depth.vert.glsl",
-                                            "light_depth.frag.glsl", ALPHA_TEST=1,
-                                            COUNT_ALPHA_TESTS=1)
+            self.program = self.counting
             GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
             GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 4, np.zeros(1, np.uint32),
                             GL.GL_DYNAMIC_READ)
@@ -97,7 +100,6 @@ class _DepthMapResources:
         finally:
             GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
             GL.glDeleteBuffers(1, [counter])
-            self.program.release()
             self.program = drawing
             scratch.release()
         self.counted = (key, tests)
@@ -121,6 +123,8 @@ class _DepthMapResources:
     def release(self) -> None:
         self.fbo.release()
         self.program.release()
+        if self.counting is not None:
+            self.counting.release()
 
 
 class LightDepthMap(_DepthMapResources):

@@ -13,7 +13,7 @@ import pytest
 from harness.technique import Frame, registry
 
 from helpers import (CARD_LIGHT, alpha_card_scene, card_crossing, card_uv, card_visibility,
-                     checker, render_once)
+                     checker, render_once, run_contract)
 
 CHECKER = checker(8, 8)  # one texel a square: the cut runs along texel edges and corners
 
@@ -248,3 +248,16 @@ def test_a_moving_cut_out_is_cut_where_it_moved(gl_context, technique, bar):
     frame.release()
     assert agree[0][1] >= bar and agree[1][0] >= bar  # each frame its own card
     assert agree[1][1] < 0.97  # the spin moved the shadow
+
+
+@pytest.mark.parametrize("technique", list(registry.techniques()))
+def test_every_technique_frees_what_the_cut_outs_made(gl_context, technique):
+    """Every registered technique (those that decline, run with alpha: ignore) runs the
+    contract on the card scene (prepare, update, two renders, release) and leaves no GL
+    object behind: the cut-outs' textures, attribute buffer, rt's cut-out buffer and the
+    counting program included. Catches the counting program or rt's cut-out buffer never
+    released."""
+    cls = registry.get(technique)
+    params = {"alpha": "ignore"} if "alpha" in cls.Params.model_fields else {}
+    outputs, _ = run_contract(cls, alpha_card_scene(CHECKER, size=48), **params)
+    assert outputs is not None and outputs[-1].visibility.shape == (48, 48)
