@@ -367,3 +367,134 @@ def render_once(technique, frame):
     technique.release()
     reset_gl_state()
     return output
+
+
+# A checker-cut card over a ground plane under a directional light at 45 degrees: the card
+# (CARD_SIZE square, its plane z = CARD_HEIGHT, centred at x = CARD_HEIGHT) casts its shadow
+# around the origin, where the camera looks straight down; the card itself is outside the
+# view (the camera sees ground only). CARD_POINT_LIGHT: a point light on the same diagonal,
+# whose card shadow also falls around the origin (1.25 times the card's size).
+CARD_HEIGHT, CARD_SIZE = 2.5, 2.0
+CARD_LIGHT = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2.0)
+CARD_POINT_LIGHT = np.array([12.5, 0.0, 12.5])
+CARD_GAP = 1e-3  # between copies of the card stacked along z
+
+
+def checker(texels: int, cells: int) -> np.ndarray:
+    """A (texels, texels) uint8 checker of ``cells`` x ``cells`` squares, 255 and 0, the
+    top-left one 255."""
+    index = np.arange(texels) * cells // texels
+    return np.where((index[:, None] + index[None, :]) % 2 == 0, 255, 0).astype(np.uint8)
+
+
+def card_uv(points: np.ndarray) -> np.ndarray:
+    """The card's texture coordinates (glTF: u right, v down the image) at points in its
+    plane (..., 2 or 3): u along x, v down y, (0, 0) at its corner of least x and most y."""
+    half = CARD_SIZE / 2
+    return np.stack([(points[..., 0] - (CARD_HEIGHT - half)) / CARD_SIZE,
+                     (half - points[..., 1]) / CARD_SIZE], axis=-1)
+
+
+def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
+                     card_copies: int = 1, point_light: bool = False, motion: dict | None = None):
+    """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
+    at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
+    the other, CARD_GAP apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
+    is the opaque scene's with the cut-out's digest (its own reference cache entry). ``motion``:
+    the scene's motion (the cards are objects ``card0``, ``card1``, ...)."""
+    import dataclasses
+
+    from harness.scene.alpha import AlphaMask
+
+    card = {"shape": "plane", "size": [CARD_SIZE, CARD_SIZE]}
+    scene = {"resolution": [size, size],
+             "camera": {"position": [0, 0, 6], "target": [0, 0, 0], "up": [0, 1, 0],
+                        "yfov": 40, "near": 0.1, "far": 100},
+             "light": ({"type": "point", "position": CARD_POINT_LIGHT.tolist()} if point_light
+                       else {"type": "directional", "direction": CARD_LIGHT.tolist()}),
+             "effects": ["shadow"],
+             "objects": [{"shape": "plane", "size": [10, 10]}] + [
+                 {**card, "name": f"card{k}",
+                  "translate": [CARD_HEIGHT, 0, CARD_HEIGHT + CARD_GAP * k]}
+                 for k in range(card_copies)]}
+    if motion:
+        scene["motion"] = motion
+    built = build_scene("alpha_card", config.Scene(**scene))
+    mask = AlphaMask(texture, cutoff, "checker")
+    parts = [built.parts[0]] + [
+        dataclasses.replace(p, alpha=mask,
+                            texcoords=card_uv(p.vertices[p.faces]).astype(np.float32))
+        for p in built.parts[1:]]
+    return dataclasses.replace(built, parts=parts, key=f"{built.key}-alpha-{mask.digest}")
+
+
+def card_crossing(position: np.ndarray, point_light: bool = False, copy: int = 0):
+    """Where each ground point's ray to the light crosses the plane of the card's ``copy``
+    (float64 (..., 3)), and whether inside that card."""
+    p = position.astype(np.float64)
+    to_light = CARD_POINT_LIGHT - p if point_light else np.broadcast_to(-CARD_LIGHT, p.shape)
+    s = (CARD_HEIGHT + CARD_GAP * copy - p[..., 2]) / to_light[..., 2]
+    hit = p + s[..., None] * to_light
+    return hit, np.all(np.abs(hit[..., :2] - [CARD_HEIGHT, 0.0]) <= CARD_SIZE / 2, axis=-1)
+
+
+def card_visibility(position: np.ndarray, covered: np.ndarray, texture: np.ndarray,
+                    cutoff: float, point_light: bool = False) -> np.ndarray:
+    """The exact visibility of ground points (G-buffer positions (H, W, 3)) under the card,
+    in float64 and independently of every technique: each point moved along its ray to the
+    light to the card's plane, inside the card and its alpha by
+    harness.scene.alpha.sample_alpha at or above the cutoff: 0, else 1. Uncovered pixels: 1."""
+    from harness.scene.alpha import sample_alpha
+
+    hit, inside = card_crossing(position, point_light)
+    opaque = sample_alpha(texture, card_uv(hit)) >= cutoff
+    return np.where(covered & inside & opaque, 0.0, 1.0)
+
+
+# The technique contract run by hand, its GL objects counted before and after.
+GL_NAME_RANGE = range(1, 2001)
+
+
+def live_gl_names() -> dict[str, set[int]]:
+    """The GL names alive now, by object kind (textures, framebuffers, programs, buffers, VAOs)."""
+    from OpenGL import GL
+
+    checks = {"texture": GL.glIsTexture, "framebuffer": GL.glIsFramebuffer,
+              "program": GL.glIsProgram, "buffer": GL.glIsBuffer,
+              "vertex array": GL.glIsVertexArray}
+    return {kind: {i for i in GL_NAME_RANGE if is_live(i)} for kind, is_live in checks.items()}
+
+
+def leaked(before: dict[str, set[int]], after: dict[str, set[int]]) -> dict[str, list[int]]:
+    return {kind: sorted(after[kind] - before[kind]) for kind in after
+            if after[kind] - before[kind]}
+
+
+def run_contract(cls, scene, **params):
+    """prepare, update, two measured renders, release, as the runner does (``params`` over the
+    defaults); asserts that no GL object outlives the technique and the frame. Returns
+    (outputs, passes), or (None, None) when the technique does not apply to the scene."""
+    from harness.technique import NotApplicable
+
+    before = live_gl_names()
+    frame = Frame(scene)
+    technique = cls(cls.Params(**params))
+    outputs, passes = [], None
+    try:
+        try:
+            technique.prepare(frame)
+            technique.update(frame)
+        except NotApplicable:
+            outputs = None
+        else:
+            for _ in range(2):
+                frame.meter.new_frame(True)
+                outputs.append(technique.render(frame))
+            passes = frame.meter.passes()
+    finally:
+        technique.release()  # also after NotApplicable: the runner releases every technique
+        frame.release()
+        reset_gl_state()
+    gone = leaked(before, live_gl_names())
+    assert not gone, f"{cls.name} leaks GL objects on {scene.name}: {gone}"
+    return outputs, passes

@@ -86,15 +86,44 @@ class BufferTexture:
         GL.glDeleteBuffers(1, [self.buffer])
 
 
+def cut_out_corners(vertices: np.ndarray, faces: np.ndarray, face_mask: np.ndarray,
+                    face_texcoords: np.ndarray):
+    """The indexed mesh with the alpha-tested faces' corners given their own vertices where
+    their texture coordinates differ (a texture seam), and each vertex's ``(u, v, mask)``
+    (mask -1: opaque): ``(vertices, faces, cutout)``. Face order, and so ``gl_PrimitiveID``,
+    is kept; opaque faces keep their shared vertices."""
+    tested = np.flatnonzero(face_mask >= 0)
+    uv = np.ascontiguousarray(face_texcoords[tested], np.float32)
+    corners = np.column_stack([faces[tested].reshape(-1).astype(np.int64),
+                               uv.reshape(-1, 2).view(np.int32).astype(np.int64),
+                               np.repeat(face_mask[tested], 3).astype(np.int64)])
+    keys, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    cutout = np.zeros((len(vertices) + len(keys), 3), np.float32)
+    cutout[:, 2] = -1.0
+    cutout[len(vertices):, :2] = uv.reshape(-1, 2)[first]
+    cutout[len(vertices):, 2] = keys[:, 3]
+    faces = faces.copy()
+    faces[tested] = (len(vertices) + inverse.reshape(-1)).reshape(-1, 3)
+    return np.concatenate([vertices, vertices[keys[:, 0]]]), faces, cutout
+
+
 class SceneMesh:
     """The scene as engines draw it: shared vertices (position, loc 0) drawn by index
     (glDrawElements), so each vertex is shaded once however many triangles share it. What is
     flat per face (normal, albedo) is a buffer texture of RGBA32F (xyz normal, w albedo) that
     a fragment shader reads at ``gl_PrimitiveID``, the face's index in the draw (the
-    G-buffer's), bound by :meth:`bind_face_attributes`."""
+    G-buffer's), bound by :meth:`bind_face_attributes`.
+
+    A scene with alpha-tested casters passes ``cutouts`` = (face_mask, face_texcoords) of
+    :class:`harness.scene.BuiltScene`: each vertex then also has ``(u, v, mask)`` at location
+    1 (:func:`cut_out_corners`), which a shader built with ``ALPHA_TEST`` reads; a scene
+    without has no such attribute, so its draws fetch nothing more."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
-                 albedo: np.ndarray):
+                 albedo: np.ndarray, cutouts: tuple[np.ndarray, np.ndarray] | None = None):
+        cutout = None
+        if cutouts is not None:
+            vertices, faces, cutout = cut_out_corners(vertices, faces, *cutouts)
         self.vertex_count, self.index_count = len(vertices), faces.size
         self.vao = GL.glGenVertexArrays(1)
         self.vbo, self.ebo = GL.glGenBuffers(2)
@@ -105,6 +134,13 @@ class SceneMesh:
                         positions if len(positions) else None, GL.GL_STATIC_DRAW)
         GL.glEnableVertexAttribArray(0)
         GL.glVertexAttribPointer(0, 3, GL.GL_FLOAT, GL.GL_FALSE, 12, ctypes.c_void_p(0))
+        self.cutout_vbo = None
+        if cutout is not None:
+            self.cutout_vbo = GL.glGenBuffers(1)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self.cutout_vbo)
+            GL.glBufferData(GL.GL_ARRAY_BUFFER, cutout.nbytes, cutout, GL.GL_STATIC_DRAW)
+            GL.glEnableVertexAttribArray(1)
+            GL.glVertexAttribPointer(1, 3, GL.GL_FLOAT, GL.GL_FALSE, 12, ctypes.c_void_p(0))
         GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.ebo)  # recorded in the VAO
         indices = np.ascontiguousarray(faces, dtype=np.uint32)
         GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, max(indices.nbytes, 4),
@@ -128,6 +164,8 @@ class SceneMesh:
     def release(self) -> None:
         self.face_attributes.release()
         GL.glDeleteBuffers(2, [self.vbo, self.ebo])
+        if self.cutout_vbo is not None:
+            GL.glDeleteBuffers(1, [self.cutout_vbo])
         GL.glDeleteVertexArrays(1, [self.vao])
 
 

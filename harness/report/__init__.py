@@ -18,6 +18,8 @@ The page's parts, one module each:
 - ``scale``: with family scenes, cost at equal error against triangles, the fitted exponents,
   the fronts per size and the crossover table;
 - ``stability``: scenes x techniques with failures, NaN/Inf and V outside [0, 1];
+- ``cutouts``: per scene with alpha-tested casters, which techniques cut them out, which ran
+  ignoring them (with their error) and which declined (with the reason);
 - ``tuning``: in a folder ``shadowbench tune`` wrote (whose verdict is then given on the tuned
   runs, the defaults' beside), what tuning bought and the bias window's acne-against-leak curve;
 - ``papers``: the Papers page; ``compare``: two results folders run by run.
@@ -47,6 +49,7 @@ from .scale import scale_view
 from .papers import build_papers_page, papers_link
 from .render import render, write_page
 from .scene_section import scene_section, shown_rows
+from .cutouts import cutout_table
 from .stability import stability_table
 from .stored import Folder, slug
 from .tuning import tuning_view
@@ -108,6 +111,7 @@ def build_report(out_dir: str | Path, *, shown_px: int = images.SHOWN_PX,
             defaults_verdicts=overview.verdicts(defaults, shown, colours) if tuned else None,
             tuning=tuning_view(with_tuning, colours) if tuned else None,
             baseline=baseline or "the baseline", stability=stability_table(shown),
+            cutouts=cutout_table(shown),
             scale=scale_view(current, colours, baseline,
                              registry.rivals(set(current["technique"]))),
             theta=plots.theta(current, colours), papers=papers_link(folder.root))

@@ -84,6 +84,11 @@ COLUMN_TABLE: tuple[Column, ...] = (
            "paper)", _ERROR),
     Column("mem_bytes", float, "bytes", "the technique's maps and buffers", _ERROR),
     Column("fetches_per_px", float, "count", "texture fetches per shaded pixel", _ERROR),
+    Column("alpha", str, "", "what the run did with the scene's alpha-tested casters: `none` "
+           "(it has none), `tested` (the technique cuts them out by the texture's alpha), "
+           "`ignored` (its `alpha: ignore` drew them opaque: its error shows what that costs), "
+           "`declined` (skipped, the reason in `error`)", "where the run stopped before it "
+           "was prepared (a light type declined), and in folders written before the column"),
     Column("covered_px", float, "px", "camera pixels covered by geometry", _ERROR),
     Column("vertex_invocations", float, "count", f"vertices shaded in the measured passes, "
            f"{_PER_FRAME}", _COUNTERS),

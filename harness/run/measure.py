@@ -151,7 +151,10 @@ def _start(spec: RunSpec, frame, row: dict) -> _Timed:
 
     def prepare():
         cls.check_light(frame.scene.light)
-        timed.technique = cls(cls.Params(**spec.params))
+        params = cls.Params(**spec.params)
+        timed.row["alpha"] = cls.alpha_handling(params, frame.scene)
+        cls.check_alpha(params, frame.scene)
+        timed.technique = cls(params)
         timed.row["prepare_ms"] = _prepare_ms(timed.technique, frame)
         if not timed.updates_per_frame:
             _measure_setup(timed, frame)

@@ -29,7 +29,7 @@ from __future__ import annotations
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from OpenGL import GL
@@ -40,6 +40,7 @@ from .code_version import code_hash
 from ..config import LIGHT_TYPES, TypesAsWritten
 from ..gl.gbuffer import GBuffer
 from ..gl.framebuffer import Framebuffer
+from ..gl.alpha import AlphaTextures
 from ..gl.geometry import FullscreenTriangle, SceneMesh
 from ..gl import measure as pass_measure
 from ..gl.measure import PassMeter, default_timer
@@ -50,6 +51,12 @@ from ..scene.transforms import camera_matrices
 
 class NotApplicable(Exception):
     """Raised by ``prepare`` when the technique does not apply to a scene (status=skipped)."""
+
+
+# What a technique that does not treat alpha-tested casters does on a scene with them, as its
+# ``alpha`` parameter: ``decline`` (skipped, the reason in ``error``) or ``ignore`` (it runs with
+# every cut-out drawn opaque, the row's ``alpha`` column ``ignored``, so its error shows).
+AlphaPolicy = Literal["decline", "ignore"]
 
 
 class TechniqueParams(TypesAsWritten):
@@ -109,8 +116,35 @@ class Technique:
         "point": "it declares no point-light path (a point light shines every way, past any "
                  "one light frustum)"}
 
+    # Whether the technique treats alpha-tested casters (``BuiltScene.has_alpha``: a texture's
+    # alpha cuts the surface out, by the rule of harness.scene.alpha) in its own passes. One
+    # that does not declines a scene with them unless its ``alpha`` parameter (AlphaPolicy)
+    # says ``ignore`` (:meth:`alpha_handling`).
+    alpha_casters: ClassVar[bool] = False
+
     def __init__(self, params: TechniqueParams):
         self.params = params
+
+    @classmethod
+    def alpha_handling(cls, params: TechniqueParams, scene: BuiltScene) -> str:
+        """What the run does with the scene's cut-outs, the row's ``alpha`` column: ``none``
+        (the scene has none), ``tested`` (the technique treats them), ``ignored`` (drawn
+        opaque, as its ``alpha: ignore`` asks) or ``declined`` (see :meth:`check_alpha`)."""
+        if not scene.has_alpha:
+            return "none"
+        if cls.alpha_casters:
+            return "tested"
+        return "ignored" if getattr(params, "alpha", "decline") == "ignore" else "declined"
+
+    @classmethod
+    def check_alpha(cls, params: TechniqueParams, scene: BuiltScene) -> None:
+        """Raise :class:`NotApplicable` naming the reason where the technique declines the
+        scene's alpha-tested casters."""
+        if cls.alpha_handling(params, scene) == "declined":
+            how = (" (alpha: ignore runs it with them drawn opaque)"
+                   if "alpha" in cls.Params.model_fields else "")
+            raise NotApplicable(f"{cls.name} does not treat alpha-tested casters: it draws "
+                                f"every triangle whole, cut-outs included{how}")
 
     @classmethod
     def check_light(cls, light) -> None:
@@ -232,6 +266,8 @@ class Frame:
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
         self.geometry = self._scene_mesh()
+        # the cut-outs' textures for alpha_test.glsl (bind_alpha), where the scene has any
+        self.alpha = AlphaTextures(self.scene.alpha_masks) if self.scene.has_alpha else None
         self.gbuffer = GBuffer(self.width, self.height)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
@@ -244,7 +280,8 @@ class Frame:
 
     def _scene_mesh(self) -> SceneMesh:
         s = self.scene
-        return SceneMesh(*s.indexed, s.face_normals, s.face_albedo)
+        cutouts = (s.face_mask, s.face_texcoords) if s.has_alpha else None
+        return SceneMesh(*s.indexed, s.face_normals, s.face_albedo, cutouts)
 
     def _camera_pass(self):
         self.gbuffer.render(self.geometry, self.camera.view_proj)
@@ -331,6 +368,12 @@ class Frame:
                     gbuffer_normal=self.gbuffer.normal_texture.bind(first_unit + 1))
         return first_unit + 2
 
+    def bind_alpha(self, program: Program, first_unit: int) -> int:
+        """Bind the cut-outs' textures for ``alpha_test.glsl`` to ``program`` (in use), from
+        texture unit ``first_unit``; returns the next free unit (``first_unit`` on a scene
+        without cut-outs)."""
+        return first_unit if self.alpha is None else self.alpha.bind(program, first_unit)
+
     def share_scene_depth(self, target: Framebuffer) -> None:
         """Attach the G-buffer's depth-stencil to ``target`` (a framebuffer of the frame's size
         made with ``depth=False``), so a technique depth-tests against the camera pass, the
@@ -369,8 +412,9 @@ class Frame:
 
     def release(self) -> None:
         for r in (self.geometry, self.gbuffer, self.fullscreen_triangle, self.visibility_target,
-                  self.meter):
-            r.release()
+                  self.meter, self.alpha):
+            if r is not None:
+                r.release()
 
 
 def reset_gl_state() -> None:

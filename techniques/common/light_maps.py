@@ -51,11 +51,65 @@ EMPTY_DEPTH = 3.0e38
 
 class _DepthMapResources:
     """What every light depth map holds: its framebuffer, the program drawing linear depth, and
-    the light frusta it is drawn with (``frusta``)."""
+    the light frusta it is drawn with (``frusta``). On a scene with alpha-tested casters the
+    program cuts them out (``ALPHA_TEST``: a cut-out texel writes no depth) unless ``cutouts``
+    is False (a technique that ignores them draws them opaque)."""
 
-    def __init__(self, fbo: Framebuffer):
+    def __init__(self, frame: Frame, fbo: Framebuffer, cutouts: bool):
         self.fbo = fbo
-        self.program = Technique.shader(__file__, "light_depth.vert.glsl", "light_depth.frag.glsl")
+        self.alpha_test = cutouts and frame.scene.has_alpha
+        defines = {"ALPHA_TEST": 1} if self.alpha_test else {}
+        self.program = Technique.shader(__file__, "light_depth.vert.glsl",
+                                        "light_depth.frag.glsl", **defines)
+        self.counted = (None, 0)  # what the alpha tests were last counted for, and how many
+        self.counting = None  # the counting program, made when first needed
+
+    def render(self, frame: Frame) -> None:
+        raise NotImplementedError
+
+    def alpha_tests(self, frame: Frame) -> int:
+        """Fragments of the map's depth pass that ran the alpha test (4 texels each), counted
+        untimed by drawing the map again with a counting program (the same depths), whenever
+        the light or the geometry moved: a diagnostic, as rt's counted rays. 0 without
+        cut-outs."""
+        if not self.alpha_test:
+            return 0
+        key = b"".join(np.asarray(m, np.float64).tobytes() for f in self.frusta
+                       for m in (f.view, f.proj)) + frame.part_poses.tobytes()
+        if key == self.counted[0]:
+            return self.counted[1]
+        if self.counting is None:
+            self.counting = Technique.shader(__file__, "light_depth.vert.glsl",
+                                             "light_depth.frag.glsl", ALPHA_TEST=1,
+                                             COUNT_ALPHA_TESTS=1)
+        drawing, scratch = self.program, frame.new_meter()
+        counter = GL.glGenBuffers(1)
+        try:
+            self.program = self.counting
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+            GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 4, np.zeros(1, np.uint32),
+                            GL.GL_DYNAMIC_READ)
+            GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, counter)
+            scratch.new_frame(measuring=False)  # its passes are timed nowhere
+            with frame.metered(scratch):
+                self.render(frame)
+            GL.glMemoryBarrier(GL.GL_ATOMIC_COUNTER_BARRIER_BIT)
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+            tests = int(np.frombuffer(GL.glGetBufferSubData(GL.GL_ATOMIC_COUNTER_BUFFER, 0, 4),
+                                      np.uint32)[0])
+        finally:
+            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
+            GL.glDeleteBuffers(1, [counter])
+            self.program = drawing
+            scratch.release()
+        self.counted = (key, tests)
+        return tests
+
+    def use_program(self, frame: Frame, frustum: LightFrustum) -> None:
+        """Bind the depth program for ``frustum`` (and the cut-outs' textures it reads)."""
+        self.program.use().set(light_view=frustum.view, light_proj=frustum.proj)
+        if self.alpha_test:
+            frame.bind_alpha(self.program, 0)
 
     @property
     def mem_bytes(self) -> int:
@@ -69,15 +123,18 @@ class _DepthMapResources:
     def release(self) -> None:
         self.fbo.release()
         self.program.release()
+        if self.counting is not None:
+            self.counting.release()
 
 
 class LightDepthMap(_DepthMapResources):
     """A res x res linear-depth map (R32F) rendered from the scene's light."""
 
-    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None):
+    def __init__(self, frame: Frame, res: int, frustum: LightFrustum | None = None,
+                 cutouts: bool = True):
         self.res = res
         self.frustum = frustum or fit_light(frame.scene, res)
-        super().__init__(Framebuffer(res, res, (GL.GL_R32F,), depth=True))
+        super().__init__(frame, Framebuffer(res, res, (GL.GL_R32F,), depth=True), cutouts)
 
     @property
     def frusta(self) -> list[LightFrustum]:
@@ -90,7 +147,7 @@ class LightDepthMap(_DepthMapResources):
         self.fbo.clear((EMPTY_DEPTH,) * 4)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthFunc(GL.GL_LESS)
-        self.program.use().set(light_view=self.frustum.view, light_proj=self.frustum.proj)
+        self.use_program(frame, self.frustum)
         frame.draw_scene()
 
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame,
@@ -127,8 +184,8 @@ class CubeDepthMap(_DepthMapResources):
         self.res, self.size = res, res + 2 * guard
         self.half_tan = self.size / res
         self.fit(frame)
-        super().__init__(Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
-                                     layers=len(CUBE_AXES)))
+        super().__init__(frame, Framebuffer(self.size, self.size, (GL.GL_R32F,), depth=True,
+                                            layers=len(CUBE_AXES)), cutouts=True)
 
     @property
     def frusta(self) -> list[LightFrustum]:
@@ -145,7 +202,7 @@ class CubeDepthMap(_DepthMapResources):
                 self.fbo.colors[0].clear(EMPTY_DEPTH, layer)
                 self.fbo.attach_layer(layer)
                 self.fbo.depth.clear_depth_stencil(0)
-                self.program.use().set(light_view=face.view, light_proj=face.proj)
+                self.use_program(frame, face)
                 frame.draw_scene()
 
     def lookup_uniforms(self, unit: int, slope_bias: float, frame: Frame) -> dict:
@@ -156,6 +213,14 @@ class CubeDepthMap(_DepthMapResources):
                     light_position=frame.scene.light.position, map_res=float(self.size),
                     light_is_ortho=False, slope_bias=slope_bias,
                     depth_precision=depth_precision(frame.scene.bounds, first.view))
+
+
+def alpha_fetches_per_px(frame: Frame, *maps: _DepthMapResources) -> float:
+    """The alpha texels the maps' depth passes read (4 per alpha test, see
+    :meth:`_DepthMapResources.alpha_tests`), per shaded (covered) pixel: what the cut-outs add
+    to a map technique's ``fetches_per_px``."""
+    covered = int(frame.arrays.covered.sum())
+    return 4 * sum(m.alpha_tests(frame) for m in maps) / max(covered, 1)
 
 
 # Depths and G-buffer positions are float32: far from the origin their rounding alone makes a

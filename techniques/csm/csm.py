@@ -17,8 +17,8 @@ from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
-                                          MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms,
-                                          depth_precision)
+                                          MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
+                                          alpha_fetches_per_px, bias_uniforms, depth_precision)
 
 MAX_SPLITS = 4  # csm_shading.frag.glsl's MAX_CASCADES
 # Relative margin around a slice's light-space box: its receivers on the box's faces stay
@@ -221,6 +221,7 @@ class CascadedShadowMap(Technique):
                "lambda": ("float", 0.0, 1.0)}
     bias_terms = BIAS_TERMS
     Params = _Params
+    alpha_casters = True  # each cascade's depth pass cuts them out (light_maps)
     declines_lights = {
         "spot": "cascades split a directional light's map; a spot light has one frustum",
         "point": "cascades split a directional light's map; a point light shines every way, "
@@ -315,7 +316,8 @@ class CascadedShadowMap(Technique):
                              slope_bias=p.slope_bias, normal_offset=p.normal_offset,
                              depth_precision=precision, **bias_uniforms(p.bias_mode))
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
-        return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps), fetches_per_px=1,
+        return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps),
+                            fetches_per_px=1 + alpha_fetches_per_px(frame, *self.maps),
                             nonfinite=sum(m.nonfinite for m in self.maps),
                             extra=self.columns(), maps={"cascade": self.cascade_map(frame)})
 

@@ -18,7 +18,8 @@ from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling)
+                                          MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling,
+                                          alpha_fetches_per_px)
 
 SHADING = Path(__file__).with_name("mdsm_shading.frag.glsl")
 
@@ -158,6 +159,7 @@ class MultipleDepthShadowMap(Technique):
     # the selection window besides the bias terms: how far a depth may come from its cell
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING, "q": ("choice", WINDOW_SAMPLES)}
     bias_terms = BIAS_TERMS
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
     declines_lights = {"point": "it has no cube-map path: its selection pass and PCF(k, n) read "
                                 "square windows of one light frustum's map"}
 
@@ -248,7 +250,7 @@ class MultipleDepthShadowMap(Technique):
         shaded = int(frame.arrays.covered.sum())
         return frame.output(
             mem_bytes=base.mem_bytes + (self.selection.mem_bytes if self.selection else 0),
-            fetches_per_px=p.k, nonfinite=base.nonfinite,
+            fetches_per_px=p.k + alpha_fetches_per_px(frame, base), nonfinite=base.nonfinite,
             extra={"select_fetches": q * p.res * p.res, "select_fetches_per_cell": q,
                        "shaded_px": shaded, "shading_fetches": shaded * p.k})
 

@@ -11,8 +11,9 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
-from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS, BiasMode,
-                                          FilteredShadowMap, Sampling)
+from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS,
+                                          BiasMode, FilteredShadowMap, Sampling,
+                                          alpha_fetches_per_px)
 
 SHADING = Path(__file__).with_name("pcf_shading.frag.glsl")
 
@@ -99,6 +100,7 @@ class PercentageCloserFiltering(Technique):
                "res_factor": ("log", 0.125, 4.0), "min_size": ("log", 0.125, 4.0)}
     bias_terms = ("bias_min", "bias_max", "slope_bias", "normal_offset")
     declines_lights = {}  # a point light gets a cube map: six faces
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
@@ -138,7 +140,8 @@ class PercentageCloserFiltering(Technique):
             jitter=p.sampling == "jitter", seed=p.seed, bias_min=p.bias_min,
             bias_max=p.bias_max, slope_bias=p.slope_bias, normal_offset=p.normal_offset,
             bias_mode=p.bias_mode))
-        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=p.k,
+        fetches = p.k + alpha_fetches_per_px(frame, self.passes.map)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
                             nonfinite=self.passes.map.nonfinite)
 
     def release(self) -> None:

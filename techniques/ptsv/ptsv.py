@@ -10,7 +10,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import Field, field_validator
 
-from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.technique import AlphaPolicy, Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import box_corners
 
 from .casters import quad_casters, triangle_casters
@@ -106,6 +106,9 @@ class PerTriangleShadowVolumes(Technique):
                     magnification, as sv)
     ``quads``       two triangles making a planar convex quad cast one    true
                     volume (V the same); ``false``: one per triangle
+    ``alpha``       on a scene with alpha-tested casters: ``decline``     decline
+                    (skipped: a volume is a whole triangle's) or
+                    ``ignore`` (run, cut-outs opaque)
     ==============  ====================================================  =======  ===========
     """
 
@@ -127,6 +130,7 @@ class PerTriangleShadowVolumes(Technique):
         slices: int = Field(32, ge=2, le=64)
         mask_res: Literal["full", "half", "quarter"] = "full"
         quads: bool = True
+        alpha: AlphaPolicy = "decline"
 
         @field_validator("tile")
         @classmethod

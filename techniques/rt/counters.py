@@ -18,6 +18,7 @@ class RayCounter:
 
     def __init__(self, width: int, height: int, defines: dict):
         self.width, self.height = width, height
+        self.alpha_test = "ALPHA_TEST" in defines
         self.program = ComputeProgram(Path(__file__).parent / "rt_trace.comp.glsl",
                                       {**defines, "COUNT": 1})
         self.texture = GL.glGenTextures(1)
@@ -37,8 +38,11 @@ class RayCounter:
         GL.glGetTexImage(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA_INTEGER, GL.GL_UNSIGNED_INT, out)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         rays = out[..., 0] > 0  # every traced ray visits the top level's root
-        nodes, tests, occluded = (out[..., i][rays] for i in range(3))
-        return per_ray(nodes, tests, occluded.astype(bool))
+        nodes, tests, occluded, alpha_tests = (out[..., i][rays] for i in range(4))
+        counted = per_ray(nodes, tests, occluded.astype(bool))
+        if self.alpha_test and len(alpha_tests):
+            counted["alpha_tests_per_ray"] = round(float(alpha_tests.mean()), 3)
+        return counted
 
     def release(self) -> None:
         self.program.release()

@@ -21,14 +21,17 @@ from harness.gl.geometry import BufferTexture
 from . import bvh
 
 TRIANGLE_BYTES = 48  # three RGBA32F texels
+CUTOUT_BYTES = 32  # two RGBA32F texels: the corners' texture coordinates, the cut-out's index
 INSTANCE_BYTES = 64  # four RGBA32F texels
 
 
-def bound_bytes(triangles: int) -> int:
+def bound_bytes(triangles: int, cutouts: bool = False) -> int:
     """Bytes the bottom levels may take for ``triangles``, whatever the builder: every
-    triangle's texels and a binary tree's most nodes (one triangle per leaf). The budget
-    check refuses a scene on this before building anything."""
-    return triangles * TRIANGLE_BYTES + bvh.max_records(triangles) * bvh.RECORD_BYTES
+    triangle's texels (with ``cutouts``, its texture coordinates' too) and a binary tree's
+    most nodes (one triangle per leaf). The budget check refuses a scene on this before
+    building anything."""
+    per_triangle = TRIANGLE_BYTES + (CUTOUT_BYTES if cutouts else 0)
+    return triangles * per_triangle + bvh.max_records(triangles) * bvh.RECORD_BYTES
 
 
 def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):
@@ -46,23 +49,41 @@ def _moved_boxes(lo: np.ndarray, hi: np.ndarray, poses: np.ndarray):
     return low, high
 
 
-class TwoLevelBvh:
-    """Bottom levels of ``parts`` (those with triangles) by ``build`` with ``leaf_size``."""
+def _cutout_texels(part, masks: tuple, order: np.ndarray) -> np.ndarray:
+    """``rt_trace.comp.glsl``'s ``cutouts`` of ``part``'s triangles in leaf ``order``: (u0, v0,
+    u1, v1), (u2, v2, the index of its cut-out in ``masks`` or -1, 0)."""
+    texels = np.zeros((len(order), 2, 4), np.float32)
+    texels[:, 1, 2] = -1.0
+    if part.alpha is not None:
+        uv = part.texcoords[order].reshape(-1, 6)
+        texels[:, 0] = uv[:, :4]
+        texels[:, 1, :2] = uv[:, 4:]
+        texels[:, 1, 2] = next(i for i, m in enumerate(masks) if m is part.alpha)
+    return texels.reshape(-1, 4)
 
-    def __init__(self, parts, build: str, leaf_size: int):
+
+class TwoLevelBvh:
+    """Bottom levels of ``parts`` (those with triangles) by ``build`` with ``leaf_size``. With
+    ``masks`` (the scene's ``alpha_masks``, where it has cut-outs) each triangle's texture
+    coordinates and cut-out also go up, in leaf order (``cutouts``)."""
+
+    def __init__(self, parts, build: str, leaf_size: int, masks: tuple = ()):
         self.used = [i for i, part in enumerate(parts) if len(part.faces)]
         # the top level's records first, in the same buffer: one fetch path for both levels
         self.top_records = bvh.max_records(len(self.used))
         top_slots = max(self.top_records, 1)
         records, triangles, roots, depths = [np.zeros((4 * top_slots, 4), np.float32)], [], [], []
+        cutouts = []
         record_offset, triangle_offset = top_slots, 0
         part_corners = [parts[i].vertices[parts[i].faces] for i in self.used]
         trees = bvh.build_all([bvh.triangle_boxes(c) for c in part_corners], build, leaf_size)
-        for tree, corners in zip(trees, part_corners):  # one tree per part
+        for tree, corners, used in zip(trees, part_corners, self.used):  # one tree per part
             records.append(tree.texels(record_offset, triangle_offset))
             padded = np.zeros((len(tree.order), 3, 4), np.float32)
             padded[..., :3] = corners[tree.order]
             triangles.append(padded.reshape(-1, 4))
+            if masks:
+                cutouts.append(_cutout_texels(parts[used], masks, tree.order))
             roots.append((tree.entries(record_offset, triangle_offset)[0], tree.lo[0],
                           tree.hi[0]))
             depths.append(tree.depth)
@@ -82,6 +103,8 @@ class TwoLevelBvh:
                                        GL.GL_RGBA32F)
         self.instances = BufferTexture(np.zeros((4 * max(len(self.used), 1), 4), np.float32),
                                        GL.GL_RGBA32F, dynamic=True)
+        self.cutouts = (BufferTexture(np.concatenate(cutouts) if cutouts else empty,
+                                      GL.GL_RGBA32F) if masks else None)
 
     @property
     def stack_size(self) -> int:
@@ -90,7 +113,8 @@ class TwoLevelBvh:
 
     @property
     def bottom_bytes(self) -> int:
-        return self.record_count * bvh.RECORD_BYTES + self.triangle_count * TRIANGLE_BYTES
+        per_triangle = TRIANGLE_BYTES + (CUTOUT_BYTES if self.cutouts is not None else 0)
+        return self.record_count * bvh.RECORD_BYTES + self.triangle_count * per_triangle
 
     @property
     def nbytes(self) -> int:
@@ -118,12 +142,16 @@ class TwoLevelBvh:
         self.instances.write(instances[top.order].reshape(-1, 4))  # a leaf's first: its slot
 
     def bind(self, program, first_unit: int) -> int:
-        """Bind the three buffer textures to ``program``'s samplers; returns the next unit."""
+        """Bind the buffer textures to ``program``'s samplers; returns the next unit."""
         program.set(tlas_root=self.top_root, nodes=self.nodes.bind(first_unit),
                     triangles=self.triangles.bind(first_unit + 1),
                     instances=self.instances.bind(first_unit + 2))
-        return first_unit + 3
+        if self.cutouts is None:
+            return first_unit + 3
+        program.set(cutouts=self.cutouts.bind(first_unit + 3))
+        return first_unit + 4
 
     def release(self) -> None:
-        for texture in (self.nodes, self.triangles, self.instances):
-            texture.release()
+        for texture in (self.nodes, self.triangles, self.instances, self.cutouts):
+            if texture is not None:
+                texture.release()

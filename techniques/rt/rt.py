@@ -37,7 +37,11 @@ class RayTraced(Technique):
     Benthin and Wald 2013's watertight triangle test) in the timed ``trace`` pass;
     ``backend: embree`` traces the same rays on the CPU with Mitsuba's ``ray_test``
     (``embree``), its G-buffer read-back, trace and V upload in timed passes, moving objects'
-    parts as Mitsuba instances moved in the timed ``tlas`` pass.
+    parts as Mitsuba instances moved in the timed ``tlas`` pass. Alpha-tested casters: a hit
+    on a cut-out texel does not end the ray (``alpha_test.glsl``'s rule at the hit's texture
+    coordinates in the traversal; on the embree backend a loop that goes on past it), and
+    each ray's alpha tests are counted (``alpha_tests_per_ray``, four texels each in
+    ``fetches_per_px``).
 
     A pixel whose visible side faces away from the light gets V = 0 and no ray (it receives
     no light; such pixels are never compared). The origin of each ray is the G-buffer point
@@ -73,6 +77,7 @@ class RayTraced(Technique):
     # quality knob: rays per pixel (the one way a point-sampled exact method buys time)
     quality_knobs = {"mask_res": ("quarter", "half", "full")}
     declines_lights = {}  # a ray reaches a point light as a spot light
+    alpha_casters = True  # any-hit: a hit on a cut-out texel does not end the ray
     rivals = ("sv", "silhouette")  # the exact volumes and the map with exact edges
 
     class Params(TechniqueParams):
@@ -85,7 +90,7 @@ class RayTraced(Technique):
     @classmethod
     def check_scene(cls, params, scene) -> None:
         triangles = sum(len(part.faces) for part in scene.parts)
-        bound = levels.bound_bytes(triangles)
+        bound = levels.bound_bytes(triangles, scene.has_alpha)
         if bound > params.budget_mib * 2**20:
             raise ValueError(f"budget_mib: {triangles:,} triangles could take "
                              f"{bound / 2**20:.0f} MiB of BVH, over the budget of "
@@ -104,8 +109,9 @@ class RayTraced(Technique):
         if p.backend == "embree":
             self.embree = EmbreeRays(frame)
             return
-        self.levels = levels.TwoLevelBvh(parts, p.build, p.leaf_size)
-        defines = {"STACK_SIZE": self.levels.stack_size}
+        masks = frame.scene.alpha_masks
+        self.levels = levels.TwoLevelBvh(parts, p.build, p.leaf_size, masks)
+        defines = {"STACK_SIZE": self.levels.stack_size, **({"ALPHA_TEST": 1} if masks else {})}
         self.trace_program = ComputeProgram(Path(__file__).parent / "rt_trace.comp.glsl", defines)
         self.counter = counters.RayCounter(self.mask.width, self.mask.height, defines)
 
@@ -128,7 +134,7 @@ class RayTraced(Technique):
             return
         program.use()
         unit = frame.bind_gbuffer(program)
-        self.levels.bind(program, unit)
+        frame.bind_alpha(program, self.levels.bind(program, unit))
         program.set(divisor=self.divisor, camera_position=frame.camera.position,
                     **self._light_uniforms(frame))
         GL.glBindImageTexture(0, self.mask.id, 0, GL.GL_FALSE, 0, GL.GL_WRITE_ONLY, GL.GL_R32F)
@@ -159,8 +165,8 @@ class RayTraced(Technique):
     def render(self, frame: Frame) -> ShadowOutput:
         extra = {}
         if self.embree is not None:
-            self.embree.trace(frame, self.mask, self.divisor, self._light_uniforms(frame),
-                              frame.camera.position)
+            extra = self.embree.trace(frame, self.mask, self.divisor,
+                                      self._light_uniforms(frame), frame.camera.position)
             bvh_bytes = 0
         else:
             with frame.measure("trace"):
@@ -170,8 +176,11 @@ class RayTraced(Technique):
         with frame.measure("visibility"):
             self._visibility_pass(frame)
         extra["bvh_bytes"] = bvh_bytes
+        # the mask's reads, and per ray each alpha test's four texels
+        alpha_fetches = 4 * extra.get("alpha_tests_per_ray", 0.0) / self.divisor ** 2
         return frame.output(mem_bytes=bvh_bytes + self.mask.nbytes,
-                            fetches_per_px=1 if self.divisor == 1 else 4, extra=extra)
+                            fetches_per_px=(1 if self.divisor == 1 else 4) + alpha_fetches,
+                            extra=extra)
 
     def release(self) -> None:
         for resource in (self.trace_program, getattr(self, "counter", None), self.mask,

@@ -3,8 +3,10 @@
 // in world space, each leaf one instance whose bottom-level BVH is in the part's own space
 // (the ray moved there by the instance's world-to-object transform). One stack serves both
 // levels (Aila and Laine 2009's while-while loop, one level at a time). Early exit on the
-// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes entered, triangle tests
-// and whether it was occluded, per ray, to `counts`.
+// first hit. Writes V (0/1) to `mask`; with COUNT defined also nodes entered, triangle tests,
+// whether it was occluded and its alpha tests, per ray, to `counts`. With ALPHA_TEST (a scene
+// with alpha-tested casters) a hit on a cut-out texel (alpha_test.glsl's rule at the hit's
+// texture coordinates) does not end the ray: any hit, not the first.
 layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(r32f, binding = 0) writeonly uniform image2D mask;
@@ -26,6 +28,17 @@ uniform vec3 camera_position;
 #include "rt_offset.glsl"
 #include "../common/receives_light.glsl"
 #include "rt_watertight.glsl"
+#ifdef ALPHA_TEST
+#include "alpha_test.glsl"
+uniform samplerBuffer cutouts;  // 2 texels per triangle, in leaf order: (u0, v0, u1, v1),
+                                // (u2, v2, its cut-out's index or -1, 0)
+
+// Whether triangle i is cut out where the ray hit it (barycentric `weights`).
+bool cut_out_hit(int i, vec3 weights) {
+    vec4 a = texelFetch(cutouts, 2 * i), b = texelFetch(cutouts, 2 * i + 1);
+    return cut_out(int(b.z), weights.x * a.xy + weights.y * a.zw + weights.z * b.xy);
+}
+#endif
 
 uint bits(float f) { return floatBitsToUint(f); }
 
@@ -60,7 +73,8 @@ const uint FIRST_MASK = (1u << COUNT_SHIFT) - 1u;
 // batch (llvmpipe runs 8 invocations as one) test their leaves together; on foliage,
 // instancing and architecture at 10^6 triangles 1.4-1.6x faster than entering one node of
 // either kind per step (same V).
-bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, out uint tested) {
+bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, out uint tested,
+              out uint alpha_tests) {
     const uint POP = 0xFFFFFFFFu;  // no leaf has 31 primitives: the entry "take the next one"
     uint stack[STACK_SIZE];
     int sp = 0, floor_sp = 0;
@@ -70,6 +84,8 @@ bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, o
     Watertight ray;
     visited = 0u;
     tested = 0u;
+    alpha_tests = 0u;
+    vec3 weights;
     while (true) {
         // internal nodes (and pops) until a leaf: the rays of a SIMD batch then test their
         // leaves together (Aila and Laine's while-while)
@@ -108,7 +124,13 @@ bool occluded(vec3 world_origin, vec3 world_dir, float tmax, out uint visited, o
                 int t = int(3u * i);
                 if (watertight_hit(ray, texelFetch(triangles, t).xyz,
                                    texelFetch(triangles, t + 1).xyz,
-                                   texelFetch(triangles, t + 2).xyz, tmax)) {
+                                   texelFetch(triangles, t + 2).xyz, tmax, weights)) {
+#ifdef ALPHA_TEST
+                    alpha_tests++;
+                    if (cut_out_hit(int(i), weights)) {
+                        continue;
+                    }
+#endif
                     return true;
                 }
             }
@@ -138,7 +160,7 @@ void main() {
     ivec2 pixel = min(texel * divisor + divisor / 2, size - 1);
     vec4 p = texelFetch(gbuffer_position, pixel, 0);
     float v = 1.0;
-    uint visited = 0u, tested = 0u;
+    uint visited = 0u, tested = 0u, alpha_tests = 0u;
     if (p.w > 0.5) {
         // the visible side facing away from the light receives no light: V = 0 and no ray,
         // as engines skip it
@@ -148,11 +170,11 @@ void main() {
             vec3 origin = offset_ray(p.xyz, n);
             vec3 dir = directional ? light : light - origin;
             float tmax = directional ? 3.0e38 : 1.0;
-            v = occluded(origin, dir, tmax, visited, tested) ? 0.0 : 1.0;
+            v = occluded(origin, dir, tmax, visited, tested, alpha_tests) ? 0.0 : 1.0;
         }
     }
     imageStore(mask, texel, vec4(v));
 #ifdef COUNT
-    imageStore(counts, texel, uvec4(visited, tested, v == 0.0 ? 1u : 0u, 0u));
+    imageStore(counts, texel, uvec4(visited, tested, v == 0.0 ? 1u : 0u, alpha_tests));
 #endif
 }

@@ -2,7 +2,7 @@
 // dominant axis becomes z, the vertices are sheared into the ray's space and the 2D edge
 // functions U, V, W are computed there, falling back to double precision when one is exactly
 // zero, so a ray through a shared edge or vertex hits at least one of the triangles around it.
-// Both faces count (any hit).
+// Both faces count (any hit). `weights`: the hit's barycentric weights of v0, v1, v2.
 struct Watertight {
     vec3 origin;
     ivec3 k;      // kx, ky, kz
@@ -26,7 +26,7 @@ Watertight watertight_setup(vec3 origin, vec3 dir) {
     return r;
 }
 
-bool watertight_hit(Watertight r, vec3 v0, vec3 v1, vec3 v2, float tmax) {
+bool watertight_hit(Watertight r, vec3 v0, vec3 v1, vec3 v2, float tmax, out vec3 weights) {
     vec3 A = v0 - r.origin, B = v1 - r.origin, C = v2 - r.origin;
     int kx = r.k.x, ky = r.k.y, kz = r.k.z;
     float Ax = A[kx] - r.shear.x * A[kz], Ay = A[ky] - r.shear.y * A[kz];
@@ -49,5 +49,6 @@ bool watertight_hit(Watertight r, vec3 v0, vec3 v1, vec3 v2, float tmax) {
     }
     float T = (U * A[kz] + V * B[kz] + W * C[kz]) * r.shear.z;
     float t = T / det;
+    weights = vec3(U, V, W) / det;
     return t > 0.0 && t < tmax;
 }

@@ -12,7 +12,7 @@ from pydantic import Field
 
 from harness.gl.framebuffer import Framebuffer
 from harness.gl.shaders import Program
-from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.technique import AlphaPolicy, Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, fit_light
 
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
@@ -105,6 +105,10 @@ class SilhouetteMap(Technique):
     ``center_points``   debug: store every silhouette point at its      false
                         texel's centre (the paper's degenerate case,
                         equal to a shadow map on the offset depth map)
+    ``alpha``           on a scene with alpha-tested casters:           decline
+                        ``decline`` (skipped: its edges are the
+                        triangles' edges) or ``ignore`` (run, cut-outs
+                        opaque in both maps)
     ==================  ==============================================  =======  ===========
     """
 
@@ -127,10 +131,11 @@ class SilhouetteMap(Technique):
         bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
         center_points: bool = False
+        alpha: AlphaPolicy = "decline"
 
     def prepare(self, frame: Frame) -> None:
         res = self.params.res
-        self.depth_map = LightDepthMap(frame, res)
+        self.depth_map = LightDepthMap(frame, res, cutouts=False)
         self.silhouette_fbo = Framebuffer(res, res, (GL.GL_RG32F,), depth=False)
         self.edge_mesh = EdgeMesh(EdgeAdjacency(frame.scene))
         self.map_program = Program(HERE / "silhouette_edges.vert.glsl",

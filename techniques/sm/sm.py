@@ -9,7 +9,8 @@ from pydantic import Field
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, MapShading, bias_uniforms)
+                                          MAX_TEXELS, BiasMode, MapShading, alpha_fetches_per_px,
+                                          bias_uniforms)
 
 SHADING = Path(__file__).with_name("sm_shading.frag.glsl")
 
@@ -30,6 +31,8 @@ class ShadowMap(Technique):
     the receiver plane extrapolated to the texel's centre (``receiver_plane``), or the depth
     where the light ray through the texel's centre meets the point's tangent plane
     (``adaptive``, Dou et al. 2014: no constant and no slope term, a rounding epsilon only).
+    Alpha-tested casters are cut out in the depth pass (``light_maps``: a cut-out texel writes
+    no depth), whose alpha texels ``fetches_per_px`` counts per shaded pixel.
 
     =================  ================================================  =======  ===========
     Parameter          Meaning                                           Default  Range
@@ -65,6 +68,7 @@ class ShadowMap(Technique):
     # the oldest and simplest map: the others' cost is read as a multiple of its
     baseline = True
     declines_lights = {}  # a point light gets a cube map: six faces
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
 
     class Params(TechniqueParams):
         res: int = Field(1024, ge=16, le=8192)
@@ -83,7 +87,9 @@ class ShadowMap(Technique):
         p = self.params
         self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset,
                            **bias_uniforms(p.bias_mode))
-        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
+        # one depth read per pixel, and the depth pass's alpha texels where casters are cut out
+        fetches = 1 + alpha_fetches_per_px(frame, self.passes.map)
+        return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
                             nonfinite=self.passes.map.nonfinite)
 
     def release(self) -> None:

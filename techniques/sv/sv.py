@@ -10,7 +10,7 @@ import numpy as np
 from OpenGL import GL
 
 from harness.gl.framebuffer import Framebuffer
-from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
+from harness.technique import AlphaPolicy, Frame, ShadowOutput, Technique, TechniqueParams
 from techniques.common.mask import mask_visibility_program
 
 from . import sv_cpu, sv_volumes
@@ -129,6 +129,9 @@ class ShadowVolumes(Technique):
                      clamped to their receivers' light depths (Lloyd et
                      al. 2004; full mask, zfail). Directional light; not
                      with nearclip
+    ``alpha``        on a scene with alpha-tested casters: ``decline``      decline
+                     (skipped: a volume is extruded from whole
+                     triangles) or ``ignore`` (run, cut-outs opaque)
     ===============  =====================================================  ==========  =====
     """
 
@@ -153,6 +156,7 @@ class ShadowVolumes(Technique):
         normalize: Literal["rectangles", "max"] = "rectangles"
         volumes: Literal["auto", "silhouette", "polygon"] = "auto"
         cull: Literal["none", "cull", "cc"] = "none"
+        alpha: AlphaPolicy = "decline"
 
         @model_validator(mode="after")
         def _cull_needs_gpu_volumes(self):

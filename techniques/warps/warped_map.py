@@ -19,7 +19,8 @@ from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
-                                          MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
+                                          MAX_TEXELS, BiasMode, LightDepthMap,
+                                          alpha_fetches_per_px, bias_uniforms)
 from .warp_body import (LightSpace, ReceiverPoints, Receivers, ViewSetup, caster_body,
                         convex_vertices, homogeneous, light_space, padded_bounds, project,
                         receiver_body, receiver_points, space_depth_range, space_theta,
@@ -101,6 +102,7 @@ class WarpedShadowMap(Technique):
     Params = WarpParams
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
     bias_terms = BIAS_TERMS
+    alpha_casters = True  # the depth pass cuts them out (light_maps)
     declines_lights = {"point": "its warp reparameterises one light frustum, and a point light "
                                 "shines every way"}
 
@@ -172,7 +174,8 @@ class WarpedShadowMap(Technique):
         if self.columns["outside_pct"] > 0:
             warnings.append(f"{self.columns['outside_pct']:.2f}% of visible receivers fall "
                             "outside the warped map")
-        return frame.output(mem_bytes=self.map.mem_bytes, fetches_per_px=p.k,
+        return frame.output(mem_bytes=self.map.mem_bytes,
+                            fetches_per_px=p.k + alpha_fetches_per_px(frame, self.map),
                             nonfinite=self.map.nonfinite + metrics.nonfinite(self.transform.clip),
                             extra=dict(self.columns), warnings=warnings,
                             maps={"pixels_per_texel_log2": self.alias_log2})

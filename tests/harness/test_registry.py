@@ -14,7 +14,9 @@ from pydantic import ValidationError
 import techniques as techniques_package
 from harness.technique import registry
 from harness.technique.code_version import code_files
-from harness.technique import Frame, NotApplicable, Technique, reset_gl_state
+from harness.technique import Technique
+
+from helpers import run_contract
 
 
 def test_builtins_register_through_the_entry_point_group():
@@ -102,52 +104,6 @@ def test_declined_lights_name_light_types_with_a_reason(declined, message, monke
 
 TECHNIQUES = list(registry.techniques())
 TECHNIQUE_DIR = Path(techniques_package.__file__).resolve().parent
-GL_NAME_RANGE = range(1, 2001)
-
-
-def live_gl_names() -> dict[str, set[int]]:
-    """The GL names alive now, by object kind (textures, framebuffers, programs, buffers, VAOs)."""
-    from OpenGL import GL
-
-    checks = {"texture": GL.glIsTexture, "framebuffer": GL.glIsFramebuffer,
-              "program": GL.glIsProgram, "buffer": GL.glIsBuffer,
-              "vertex array": GL.glIsVertexArray}
-    return {kind: {i for i in GL_NAME_RANGE if is_live(i)} for kind, is_live in checks.items()}
-
-
-def leaked(before: dict[str, set[int]], after: dict[str, set[int]]) -> dict[str, list[int]]:
-    return {kind: sorted(after[kind] - before[kind]) for kind in after
-            if after[kind] - before[kind]}
-
-
-def run_contract(cls, scene):
-    """prepare, update, two measured renders, release, as the runner does; asserts that no GL object
-    outlives the technique and the frame. Returns (outputs, passes), or (None, None) when the
-    technique does not apply to the scene."""
-    before = live_gl_names()
-    frame = Frame(scene)
-    technique = cls(cls.Params())
-    outputs, passes = [], None
-    try:
-        try:
-            technique.prepare(frame)
-            technique.update(frame)
-        except NotApplicable:
-            outputs = None
-        else:
-            for _ in range(2):
-                frame.meter.new_frame(True)
-                outputs.append(technique.render(frame))
-            passes = frame.meter.passes()
-    finally:
-        technique.release()  # also after NotApplicable: the runner releases every technique
-        frame.release()
-        reset_gl_state()
-    gone = leaked(before, live_gl_names())
-    assert not gone, f"{cls.name} leaks GL objects on {scene.name}: {gone}"
-    return outputs, passes
-
-
 def check_output(name, output, height, width):
     v = output.visibility
     assert isinstance(v, np.ndarray) and v.dtype == np.float32, (name, type(v), v.dtype)
