@@ -1,0 +1,289 @@
+"""The GPU side of a virtual shadow map: the page table, the physical pool with its free ring,
+and the passes that mark, allocate, cull and draw pages (their shaders say what each does)."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from OpenGL import GL
+
+from harness.gl.shaders import ComputeProgram, Program
+from harness.technique import Frame
+
+from .levels import Levels
+
+HERE = Path(__file__).parent
+# vsm_pages.comp.glsl's counters
+NEED, RELEASE, HEAD, TAIL, MARKED, ALLOCATED, JOBS, HITS, COMMANDS, INVALIDATED = range(10)
+COUNTERS = 10
+STAGES = {"count": 0, "release": 1, "allocate": 2, "invalidate": 3}
+MAX_BOXES = 32  # vsm_pages.comp.glsl's
+# A cluster: this many consecutive triangles at least; at most MAX_CLUSTERS clusters (larger
+# ones past it), so culling a page against every cluster stays a small pass.
+CLUSTER_TRIANGLES = 64
+MAX_CLUSTERS = 512
+_LEVEL_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)), ("grid", "<i4", (4,)),
+                         ("res", "<f4", (4,))])
+EMPTY_ENTRY = np.array([-1, 0, 0, 0], np.int32)
+
+
+def pool_tiles(pool_pages: int) -> int:
+    """Tiles per row (and rows) of the square pool texture holding ``pool_pages`` tiles."""
+    return math.isqrt(pool_pages - 1) + 1
+
+
+def pool_bytes(pool_pages: int, page: int) -> int:
+    """The pool texture's bytes (R32UI, square)."""
+    return (pool_tiles(pool_pages) * page) ** 2 * 4
+
+
+def table_bytes(levels: Levels) -> int:
+    """The page table: an entry (16 bytes) and a request flag (4) per page of every level."""
+    return levels.table_size * 20
+
+
+def clustering(triangles: int) -> tuple[int, int]:
+    """(clusters, triangles per cluster) of a scene of ``triangles``."""
+    per = max(CLUSTER_TRIANGLES, -(-triangles // MAX_CLUSTERS))
+    return max(1, -(-triangles // per)), per
+
+
+class Buffer:
+    """A shader storage buffer of ``nbytes``."""
+
+    def __init__(self, nbytes: int, data: np.ndarray | None = None):
+        self.nbytes = max(int(nbytes), 16)
+        self.id = GL.glGenBuffers(1)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.id)
+        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, self.nbytes, data, GL.GL_DYNAMIC_DRAW)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def bind(self, binding: int) -> None:
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, self.id)
+
+    def write(self, data: np.ndarray, offset: int = 0) -> None:
+        data = np.ascontiguousarray(data)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.id)
+        GL.glBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, offset, data.nbytes, data)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def fill(self, value: np.ndarray) -> None:
+        """Every element set to ``value`` (4 or 16 bytes)."""
+        fmt = {4: (GL.GL_R32UI, GL.GL_RED_INTEGER), 16: (GL.GL_RGBA32UI, GL.GL_RGBA_INTEGER)}
+        internal, pixel = fmt[value.nbytes]
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.id)
+        GL.glClearBufferData(GL.GL_SHADER_STORAGE_BUFFER, internal, pixel, GL.GL_UNSIGNED_INT,
+                             value.view(np.uint32))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def read(self, dtype, count: int) -> np.ndarray:
+        GL.glMemoryBarrier(GL.GL_BUFFER_UPDATE_BARRIER_BIT)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.id)
+        size = np.dtype(dtype).itemsize * count
+        out = np.asarray(GL.glGetBufferSubData(GL.GL_SHADER_STORAGE_BUFFER, 0, size))
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        return out.view(dtype)[:count].copy()
+
+    def release(self) -> None:
+        GL.glDeleteBuffers(1, [self.id])
+
+
+@dataclass
+class FrameCounts:
+    """What one frame's allocation did (the run's ``extra`` columns)."""
+
+    marked: int = 0
+    allocated: int = 0
+    rendered: int = 0
+    hits: int = 0
+    coarsened: int = 0  # levels every pixel was moved up by to fit the pool
+    draws: int = 0  # cluster draws into tiles
+    invalidated: int = 0
+
+
+def _barrier() -> None:
+    GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
+                       | GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT)
+
+
+class PagePool:
+    """The page table for ``table_size`` entries, a pool of ``pool_pages`` tiles of ``page``
+    texels, and the passes over them."""
+
+    def __init__(self, pool_pages: int, page: int, table_size: int, level_count: int,
+                 triangles: int):
+        self.pool_pages, self.page, self.table_size = pool_pages, page, table_size
+        self.tiles = pool_tiles(pool_pages)
+        self.pool_res = self.tiles * page
+        self.pool = GL.glGenTextures(1)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self.pool)
+        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, GL.GL_R32UI, self.pool_res, self.pool_res)
+        for name in (GL.GL_TEXTURE_MIN_FILTER, GL.GL_TEXTURE_MAG_FILTER):
+            GL.glTexParameteri(GL.GL_TEXTURE_2D, name, GL.GL_NEAREST)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        self.fbo = GL.glGenFramebuffers(1)  # no attachments: the pass writes the pool by image
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
+        GL.glFramebufferParameteri(GL.GL_FRAMEBUFFER, GL.GL_FRAMEBUFFER_DEFAULT_WIDTH,
+                                   self.pool_res)
+        GL.glFramebufferParameteri(GL.GL_FRAMEBUFFER, GL.GL_FRAMEBUFFER_DEFAULT_HEIGHT,
+                                   self.pool_res)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        self.levels = Buffer(level_count * _LEVEL_DTYPE.itemsize)
+        self.entries = Buffer(table_size * 16)
+        self.requests = Buffer(table_size * 4)
+        self.counters = Buffer(COUNTERS * 4)
+        self.free = Buffer(pool_pages * 4)
+        self.jobs = Buffer(pool_pages * 16)
+        self.clusters, self.cluster_triangles = clustering(triangles)
+        self.triangles = triangles
+        self.bounds = Buffer(self.clusters * 32)
+        self.capacity = pool_pages * self.clusters
+        self.commands = Buffer(self.capacity * 20)
+        self.programs = {stage: ComputeProgram(HERE / "vsm_pages.comp.glsl", {"STAGE": number})
+                         for stage, number in STAGES.items()}
+        self.cull = ComputeProgram(HERE / "vsm_cull.comp.glsl")
+        self.clear_tiles = ComputeProgram(HERE / "vsm_clear.comp.glsl")
+        self.cluster_bounds = ComputeProgram(HERE / "vsm_bounds.comp.glsl")
+        self.draw = Program(HERE / "vsm_page.vert.glsl", HERE / "vsm_page.frag.glsl")
+        self.reset()
+
+    @property
+    def mem_bytes(self) -> int:
+        """The pool and the tables (entries, requests, free ring)."""
+        return self.pool_res ** 2 * 4 + self.table_size * 20 + self.pool_pages * 4
+
+    def reset(self) -> None:
+        """Every tile free, no page held."""
+        self.entries.fill(EMPTY_ENTRY)
+        self.free.write(np.arange(self.pool_pages, dtype=np.int32))
+        counters = np.zeros(COUNTERS, np.uint32)
+        counters[TAIL] = self.pool_pages
+        self.counters.write(counters)
+
+    def bind(self) -> None:
+        for binding, buffer in enumerate((self.levels, self.entries, self.requests, self.counters,
+                                          self.free, self.jobs)):
+            buffer.bind(binding)
+        self.bounds.bind(8)
+        self.commands.bind(9)
+
+    def upload_levels(self, levels: Levels) -> None:
+        data = np.zeros(levels.count, _LEVEL_DTYPE)
+        data["view"] = levels.views.transpose(0, 2, 1).reshape(-1, 16)  # column-major
+        data["proj"] = levels.projs.transpose(0, 2, 1).reshape(-1, 16)
+        data["grid"] = np.c_[levels.origins, levels.pages, levels.bases]
+        data["res"][:, 0] = levels.res
+        self.levels.write(data)
+
+    def _stage(self, stage: str, **uniforms) -> None:
+        self.bind()
+        self.programs[stage].use().set(table_size=self.table_size, pool_pages=self.pool_pages,
+                                       **uniforms)
+        GL.glDispatchCompute(-(-self.table_size // 64), 1, 1)
+        _barrier()
+
+    def counts(self) -> np.ndarray:
+        return self.counters.read(np.uint32, COUNTERS)
+
+    def start_frame(self) -> None:
+        """Zero the frame's counters (the free ring's head and tail stay)."""
+        counters = self.counts()
+        kept = np.zeros(COUNTERS, np.uint32)
+        kept[[HEAD, TAIL]] = counters[[HEAD, TAIL]]
+        self.counters.write(kept)
+        self.requests.fill(np.zeros(1, np.uint32))
+
+    def fits(self, level_uniforms: dict) -> tuple[bool, np.ndarray]:
+        """Whether the requests fit the pool (the count pass)."""
+        self._stage("count", **level_uniforms)
+        c = self.counts()
+        free = int(c[TAIL]) - int(c[HEAD])
+        return int(c[NEED]) <= free + int(c[RELEASE]), c
+
+    def allocate(self, level_uniforms: dict) -> np.ndarray:
+        """Release the unrequested pages' tiles, give the requested ones theirs, list the jobs;
+        the counters after it."""
+        self._stage("release", **level_uniforms)
+        self._stage("allocate", **level_uniforms)
+        return self.counts()
+
+    def invalidate(self, level_uniforms: dict, everything: bool,
+                   boxes: list[tuple[np.ndarray, np.ndarray]]) -> int:
+        """Pages whose box meets one of ``boxes`` (world low, high), or all, lose their depths;
+        how many did."""
+        uniforms = {}
+        for b, (low, high) in enumerate(boxes[:MAX_BOXES]):
+            uniforms[f"box_low[{b}]"], uniforms[f"box_high[{b}]"] = low, high
+        everything = everything or len(boxes) > MAX_BOXES
+        before = int(self.counts()[INVALIDATED])
+        self._stage("invalidate", invalidate_all=everything, boxes=min(len(boxes), MAX_BOXES),
+                    **uniforms, **level_uniforms)
+        return int(self.counts()[INVALIDATED]) - before
+
+    def box_clusters(self, frame: Frame) -> None:
+        """The caster clusters' boxes from the scene's buffers as they are now."""
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 6, frame.geometry.vbo)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, frame.geometry.ebo)
+        self.bounds.bind(8)
+        self.cluster_bounds.use().set(clusters=self.clusters,
+                                      cluster_triangles=self.cluster_triangles,
+                                      triangles=self.triangles)
+        GL.glDispatchCompute(-(-self.clusters // 64), 1, 1)
+        _barrier()
+
+    def render_jobs(self, frame: Frame, jobs: int, level_uniforms: dict) -> int:
+        """Empty the jobs' tiles, cull the clusters per job, draw them into the tiles; the
+        number of cluster draws."""
+        if jobs == 0:
+            return 0
+        self.bind()
+        GL.glBindImageTexture(0, self.pool, 0, GL.GL_FALSE, 0, GL.GL_READ_WRITE, GL.GL_R32UI)
+        self.clear_tiles.use().set(page_size=self.page, pool_tiles=self.tiles)
+        GL.glDispatchCompute(self.page // 8, self.page // 8, jobs)
+        self.cull.use().set(clusters=self.clusters, cluster_triangles=self.cluster_triangles,
+                            triangles=self.triangles, capacity=np.uint32(self.capacity),
+                            **level_uniforms)
+        GL.glDispatchCompute(-(-self.clusters // 64), jobs, 1)
+        _barrier()
+        draws = min(int(self.counts()[COMMANDS]), self.capacity)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
+        GL.glViewport(0, 0, self.pool_res, self.pool_res)
+        GL.glDisable(GL.GL_DEPTH_TEST)
+        GL.glDisable(GL.GL_CULL_FACE)
+        for plane in range(4):
+            GL.glEnable(GL.GL_CLIP_DISTANCE0 + plane)
+        self.draw.use().set(pool_tiles=self.tiles, pool_res=float(self.pool_res),
+                            **level_uniforms)
+        GL.glBindVertexArray(frame.geometry.vao)
+        GL.glBindBuffer(GL.GL_DRAW_INDIRECT_BUFFER, self.commands.id)
+        GL.glMultiDrawElementsIndirect(GL.GL_TRIANGLES, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0),
+                                       draws, 0)
+        GL.glBindBuffer(GL.GL_DRAW_INDIRECT_BUFFER, 0)
+        GL.glBindVertexArray(0)
+        for plane in range(4):
+            GL.glDisable(GL.GL_CLIP_DISTANCE0 + plane)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        _barrier()
+        return draws
+
+    def table(self) -> np.ndarray:
+        """The entries (table_size, 4) int32: slot, global x, y, valid (tests, diagnostics)."""
+        return self.entries.read(np.int32, self.table_size * 4).reshape(-1, 4)
+
+    def requested(self) -> np.ndarray:
+        return self.requests.read(np.uint32, self.table_size)
+
+    def release(self) -> None:
+        for buffer in (self.levels, self.entries, self.requests, self.counters, self.free,
+                       self.jobs, self.bounds, self.commands):
+            buffer.release()
+        for program in (*self.programs.values(), self.cull, self.clear_tiles,
+                        self.cluster_bounds, self.draw):
+            program.release()
+        GL.glDeleteTextures([self.pool])
+        GL.glDeleteFramebuffers(1, [self.fbo])
