@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -55,9 +56,17 @@ class Levels:
         return int(self.bases[-1] + self.pages[-1] ** 2)
 
 
-def top_frustum(scene) -> LightFrustum:
-    """The coarsest level's frustum: the light's own map frustum over the scene."""
-    return fit_light(scene, 1)
+def sequence_bounds(sequence) -> np.ndarray:
+    """The box holding a (moving) scene's geometry at every frame of its sequence: the
+    coarsest level is fitted to it, so it does not follow a moving object (which would move
+    every page's texels) and a technique prepared at any frame fits the same one."""
+    boxes = np.array([sequence.at_frame(t).bounds for t in range(sequence.frames)])
+    return np.array([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)])
+
+
+def top_frustum(light, bounds: np.ndarray) -> LightFrustum:
+    """The coarsest level's frustum: the light's own map frustum (sm's) over ``bounds``."""
+    return fit_light(SimpleNamespace(light=light, bounds=bounds), 1)
 
 
 def level_chain(top: LightFrustum, camera_position: np.ndarray, virtual_res: int, page: int,

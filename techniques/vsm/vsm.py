@@ -20,7 +20,7 @@ from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUN
                                           MAX_TEXELS, BiasMode, Sampling, bias_uniforms,
                                           depth_precision, sampling_uniforms)
 
-from .levels import Levels, level_chain, pixel_angle, top_frustum
+from .levels import Levels, level_chain, pixel_angle, sequence_bounds, top_frustum
 from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, pool_tiles)
 
 HERE = Path(__file__).parent
@@ -143,7 +143,8 @@ class VirtualShadowMap(Technique):
 
     def prepare(self, frame: Frame) -> None:
         p = self.params
-        self.top = top_frustum(frame.scene)
+        self.bounds = sequence_bounds(frame.sequence)
+        self.top = top_frustum(frame.scene.light, self.bounds)
         levels = self.chain(frame)
         self.pages = PagePool(p.pool_pages, p.page, levels.table_size, levels.count,
                               len(frame.scene.triangles))
@@ -192,7 +193,7 @@ class VirtualShadowMap(Technique):
         with frame.measure("page_invalidation"):
             light_moved = key != self.light
             if light_moved:
-                self.top = top_frustum(frame.scene)
+                self.top = top_frustum(light, self.bounds)
             boxes = self.moved_boxes(poses)
             levels = self.chain(frame)
             if light_moved or boxes:
@@ -263,7 +264,7 @@ class VirtualShadowMap(Technique):
                                 normal_offset=p.normal_offset)
             pcf = sampling_uniforms(frame, sampling) if p.filter == "pcf" else {}
             self.shading.set(pool=unit, pool_tiles=self.pages.tiles, bias=p.bias,
-                             **self.map_uniforms(frame, levels), **pcf, **uniforms)
+                             **{**self.map_uniforms(frame, levels), **pcf}, **uniforms)
             frame.draw_fullscreen(covered_only=True)
         counts.marked, counts.allocated = int(c[MARKED]), int(c[ALLOCATED])
         counts.rendered, counts.hits = int(c[JOBS]), int(c[HITS])
