@@ -105,9 +105,12 @@ class FrameCounts:
     invalidated: int = 0
 
 
-def _barrier() -> None:
+def barrier() -> None:
+    """After a pass: its writes visible to every later read. No program stays current: Mesa 22
+    (llvmpipe) never deleted a program used after a compute program had been current."""
     GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
                        | GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_COMMAND_BARRIER_BIT)
+    GL.glUseProgram(0)
 
 
 class PagePool:
@@ -184,7 +187,7 @@ class PagePool:
         self.programs[stage].use().set(table_size=self.table_size, pool_pages=self.pool_pages,
                                        **uniforms)
         GL.glDispatchCompute(-(-self.table_size // 64), 1, 1)
-        _barrier()
+        barrier()
 
     def counts(self) -> np.ndarray:
         return self.counters.read(np.uint32, COUNTERS)
@@ -233,7 +236,7 @@ class PagePool:
                                       cluster_triangles=self.cluster_triangles,
                                       triangles=self.triangles)
         GL.glDispatchCompute(-(-self.clusters // 64), 1, 1)
-        _barrier()
+        barrier()
 
     def render_jobs(self, frame: Frame, jobs: int, level_uniforms: dict) -> int:
         """Empty the jobs' tiles, cull the clusters per job, draw them into the tiles; the
@@ -244,11 +247,12 @@ class PagePool:
         GL.glBindImageTexture(0, self.pool, 0, GL.GL_FALSE, 0, GL.GL_READ_WRITE, GL.GL_R32UI)
         self.clear_tiles.use().set(page_size=self.page, pool_tiles=self.tiles)
         GL.glDispatchCompute(self.page // 8, self.page // 8, jobs)
+        barrier()
         self.cull.use().set(clusters=self.clusters, cluster_triangles=self.cluster_triangles,
                             triangles=self.triangles, capacity=np.uint32(self.capacity),
                             **level_uniforms)
         GL.glDispatchCompute(-(-self.clusters // 64), jobs, 1)
-        _barrier()
+        barrier()
         draws = min(int(self.counts()[COMMANDS]), self.capacity)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
         GL.glViewport(0, 0, self.pool_res, self.pool_res)
@@ -268,7 +272,7 @@ class PagePool:
             GL.glDisable(GL.GL_CLIP_DISTANCE0 + plane)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
-        _barrier()
+        barrier()
         return draws
 
     def table(self) -> np.ndarray:

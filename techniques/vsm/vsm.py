@@ -21,7 +21,7 @@ from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUN
                                           depth_precision, sampling_uniforms)
 
 from .levels import Levels, level_chain, pixel_angle, sequence_bounds, top_frustum
-from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, pool_tiles)
+from .pages import ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles
 
 HERE = Path(__file__).parent
 MAX_POOL_TEXELS = 16384  # the pool is one square texture (GL_MAX_TEXTURE_SIZE on llvmpipe)
@@ -224,7 +224,7 @@ class VirtualShadowMap(Technique):
                                 light_vector=self.light_vector(frame), reach=reach,
                                 **self.map_uniforms(frame, levels), **uniforms)
             GL.glDispatchCompute(-(-frame.width // 8), -(-frame.height // 8), 1)
-            GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT)
+            barrier()
             fits, _ = self.pages.fits(uniforms)
             if fits:
                 return bias
