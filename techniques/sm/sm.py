@@ -8,6 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, MapShading, bias_uniforms)
 
@@ -84,7 +85,8 @@ class ShadowMap(Technique):
         self.passes.render(frame, p.slope_bias, bias=p.bias, normal_offset=p.normal_offset,
                            **bias_uniforms(p.bias_mode))
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=1,
-                            nonfinite=self.passes.map.nonfinite)
+                            nonfinite=self.passes.map.nonfinite,
+                            extra=light_map_texels_per_pixel(frame, self.passes.map))
 
     def release(self) -> None:
         self.passes.release()

@@ -16,11 +16,12 @@ from harness.gl.shaders import ComputeProgram
 from harness.scene.transforms import box_corners
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, Sampling, bias_uniforms,
                                           depth_precision, sampling_uniforms)
 
-from .levels import Levels, level_chain, pixel_angle, sequence_bounds, top_frustum
+from .levels import Levels, choose_levels, level_chain, pixel_angle, sequence_bounds, top_frustum
 from .pages import ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles
 
 HERE = Path(__file__).parent
@@ -274,11 +275,24 @@ class VirtualShadowMap(Technique):
                                                                         levels.projs)))
         return frame.output(mem_bytes=self.pages.mem_bytes,
                             fetches_per_px=9 if p.filter == "pcf" else 1, nonfinite=nonfinite,
-                            extra=self.columns())
+                            extra=self.columns(frame))
 
-    def columns(self) -> dict:
-        c = self.counts
-        return {"pages_marked": c.marked, "pages_allocated": c.allocated,
+    def level_map(self, frame: Frame) -> np.ndarray:
+        """The level each covered pixel reads (levels.choose_levels, the shader's choice in
+        float64; -1 elsewhere): a diagnostic, untimed."""
+        a, levels = frame.arrays, self.levels
+        chosen = choose_levels(levels, a.position[a.covered].astype(np.float64),
+                               frame.camera.position, pixel_angle(frame.camera.proj, frame.height),
+                               self.counts.coarsened)
+        used = np.full(a.covered.shape, -1, np.int64)
+        used[a.covered] = chosen
+        return used
+
+    def columns(self, frame: Frame) -> dict:
+        c, levels = self.counts, self.levels
+        maps = [(proj @ view, res) for view, proj, res in zip(levels.views, levels.projs,
+                                                              levels.res)]
+        return {**texels_per_pixel(frame, maps, self.level_map(frame)), "pages_marked": c.marked, "pages_allocated": c.allocated,
                 "pages_rendered": c.rendered, "cache_hits": c.hits,
                 "pages_coarsened": c.coarsened, "page_draws": c.draws,
                 "pages_invalidated": c.invalidated}
