@@ -36,16 +36,6 @@ def pool_tiles(pool_pages: int) -> int:
     return math.isqrt(pool_pages - 1) + 1
 
 
-def pool_bytes(pool_pages: int, page: int) -> int:
-    """The pool texture's bytes (R32UI, square)."""
-    return (pool_tiles(pool_pages) * page) ** 2 * 4
-
-
-def table_bytes(levels: Levels) -> int:
-    """The page table: an entry (16 bytes) and a request flag (4) per page of every level."""
-    return levels.table_size * 20
-
-
 def clustering(triangles: int) -> tuple[int, int]:
     """(clusters, triangles per cluster) of a scene of ``triangles``."""
     per = max(CLUSTER_TRIANGLES, -(-triangles // MAX_CLUSTERS))
@@ -124,17 +114,21 @@ class PagePool:
         self.pool_res = self.tiles * page
         self.pool = GL.glGenTextures(1)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.pool)
-        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, GL.GL_R32UI, self.pool_res, self.pool_res)
+        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, GL.GL_DEPTH_COMPONENT32F, self.pool_res,
+                          self.pool_res)
         for name in (GL.GL_TEXTURE_MIN_FILTER, GL.GL_TEXTURE_MAG_FILTER):
             GL.glTexParameteri(GL.GL_TEXTURE_2D, name, GL.GL_NEAREST)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
-        self.fbo = GL.glGenFramebuffers(1)  # no attachments: the pass writes the pool by image
+        self.fbo = GL.glGenFramebuffers(1)  # the pool is its depth, nothing else
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
-        GL.glFramebufferParameteri(GL.GL_FRAMEBUFFER, GL.GL_FRAMEBUFFER_DEFAULT_WIDTH,
-                                   self.pool_res)
-        GL.glFramebufferParameteri(GL.GL_FRAMEBUFFER, GL.GL_FRAMEBUFFER_DEFAULT_HEIGHT,
-                                   self.pool_res)
+        GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_TEXTURE_2D,
+                                  self.pool, 0)
+        GL.glDrawBuffer(GL.GL_NONE)
+        GL.glReadBuffer(GL.GL_NONE)
+        status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        if status != GL.GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"page pool framebuffer incomplete: 0x{status:x}")
         self.levels = Buffer(level_count * _LEVEL_DTYPE.itemsize)
         self.entries = Buffer(table_size * 16)
         self.requests = Buffer(table_size * 4)
@@ -149,9 +143,10 @@ class PagePool:
         self.programs = {stage: ComputeProgram(HERE / "vsm_pages.comp.glsl", {"STAGE": number})
                          for stage, number in STAGES.items()}
         self.cull = ComputeProgram(HERE / "vsm_cull.comp.glsl")
-        self.clear_tiles = ComputeProgram(HERE / "vsm_clear.comp.glsl")
+        self.clear_tiles = Program(HERE / "vsm_clear.vert.glsl", HERE / "vsm_page.frag.glsl")
         self.cluster_bounds = ComputeProgram(HERE / "vsm_bounds.comp.glsl")
         self.draw = Program(HERE / "vsm_page.vert.glsl", HERE / "vsm_page.frag.glsl")
+        self.empty_vao = GL.glGenVertexArrays(1)
         self.reset()
 
     @property
@@ -244,10 +239,6 @@ class PagePool:
         if jobs == 0:
             return 0
         self.bind()
-        GL.glBindImageTexture(0, self.pool, 0, GL.GL_FALSE, 0, GL.GL_READ_WRITE, GL.GL_R32UI)
-        self.clear_tiles.use().set(page_size=self.page, pool_tiles=self.tiles)
-        GL.glDispatchCompute(self.page // 8, self.page // 8, jobs)
-        barrier()
         self.cull.use().set(clusters=self.clusters, cluster_triangles=self.cluster_triangles,
                             triangles=self.triangles, capacity=np.uint32(self.capacity),
                             **level_uniforms)
@@ -256,8 +247,15 @@ class PagePool:
         draws = min(int(self.counts()[COMMANDS]), self.capacity)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
         GL.glViewport(0, 0, self.pool_res, self.pool_res)
-        GL.glDisable(GL.GL_DEPTH_TEST)
         GL.glDisable(GL.GL_CULL_FACE)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_ALWAYS)  # the jobs' tiles to the far plane
+        self.clear_tiles.use().set(page_size=self.page, pool_tiles=self.tiles,
+                                   pool_res=float(self.pool_res))
+        GL.glBindVertexArray(self.empty_vao)
+        GL.glDrawArraysInstanced(GL.GL_TRIANGLE_STRIP, 0, 4, jobs)
+        GL.glDepthFunc(GL.GL_LESS)
         for plane in range(4):
             GL.glEnable(GL.GL_CLIP_DISTANCE0 + plane)
         self.draw.use().set(pool_tiles=self.tiles, pool_res=float(self.pool_res),
@@ -270,7 +268,6 @@ class PagePool:
         GL.glBindVertexArray(0)
         for plane in range(4):
             GL.glDisable(GL.GL_CLIP_DISTANCE0 + plane)
-        GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
         barrier()
         return draws
@@ -290,4 +287,5 @@ class PagePool:
                         self.cluster_bounds, self.draw):
             program.release()
         GL.glDeleteTextures([self.pool])
+        GL.glDeleteVertexArrays(1, [self.empty_vao])
         GL.glDeleteFramebuffers(1, [self.fbo])

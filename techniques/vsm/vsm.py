@@ -101,8 +101,8 @@ class VirtualShadowMap(Technique):
     paper = ("Epic Games, Virtual Shadow Maps (Unreal Engine 5); Sakmary, Ryan, Hall, Lustri "
              "2024, Virtual shadow maps, GPU Zen 3; Lefohn, Sengupta, Owens 2007, "
              "Resolution-matched shadow maps")
-    # quality knobs: the pool (coarsening where it is short) and the filter
-    quality_knobs = {"pool_pages": (256, 1024, 4096), "filter": ("none", "pcf")}
+    # quality knobs: the pool (a short one coarsens every pixel's level) and the filter
+    quality_knobs = {"pool_pages": (256, 1024), "filter": ("none", "pcf")}
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
     bias_terms = BIAS_TERMS
     rivals = ("csm",)

@@ -1,6 +1,7 @@
 // A cluster drawn for one job: the scene's vertex in the job's level, its page's square
 // mapped onto the job's pool tile, everything outside the square clipped (gl_ClipDistance),
-// so texel centres are tested as a full map of the level would test them.
+// so texel centres are tested as a full map of the level would test them; the depth is the
+// level's own window depth.
 #extension GL_ARB_shader_draw_parameters : require
 layout(location = 0) in vec3 position;
 #include "vsm_levels.glsl"
@@ -8,14 +9,11 @@ layout(location = 0) in vec3 position;
 layout(std430, binding = 5) readonly buffer Jobs { ivec4 jobs[]; };
 uniform int pool_tiles;
 uniform float pool_res;  // texels per side of the pool
-out float light_depth;
 out gl_PerVertex { vec4 gl_Position; float gl_ClipDistance[4]; };
 
 void main() {
     ivec4 job = jobs[gl_BaseInstanceARB];
-    vec4 v = levels[job.y].view * vec4(position, 1.0);
-    vec4 clip = levels[job.y].proj * v;
-    light_depth = -v.z;
+    vec4 clip = level_clip(job.y, position);
     float size = 2.0 / float(levels[job.y].grid.z);
     vec2 low = -1.0 + vec2(job.z & 0xffff, job.z >> 16) * size;
     vec2 from_low = clip.xy - low * clip.w;

@@ -9,8 +9,16 @@ mat4 light_view;
 mat4 light_proj;
 float map_res;
 int level;
-uniform usampler2D pool;
+uniform sampler2D pool;  // depth: the level's window depth of the nearest caster
 uniform int pool_tiles;
+
+// Light depth (view-space distance) from level k's window depth z: its projection inverted
+// (orthographic: z is affine in the distance; perspective: a ratio).
+float light_distance(int k, float z) {
+    mat4 p = levels[k].proj;
+    float ndc = 2.0 * z - 1.0;
+    return p[3][3] == 1.0 ? (p[3][2] - ndc) / p[2][2] : p[3][2] / (ndc + p[2][2]);
+}
 
 float map_depth(ivec2 cell) {
     int index;
@@ -19,7 +27,8 @@ float map_depth(ivec2 cell) {
     Entry e = entries[index];
     if (e.slot < 0 || e.gx != global.x || e.gy != global.y) return EMPTY_DEPTH;
     ivec2 tile = ivec2(e.slot % pool_tiles, e.slot / pool_tiles);
-    return uintBitsToFloat(texelFetch(pool, tile * page_size + cell % page_size, 0).r);
+    float z = texelFetch(pool, tile * page_size + cell % page_size, 0).r;
+    return z >= 1.0 ? EMPTY_DEPTH : light_distance(level, z);
 }
 
 // included here, not in a branch: an include is expanded once, where it first appears
