@@ -36,6 +36,23 @@ def pool_tiles(pool_pages: int) -> int:
     return math.isqrt(pool_pages - 1) + 1
 
 
+def spatial_order(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The faces in Morton (Z-curve) order of their centroids over the mesh's box, 10 bits per
+    axis: consecutive triangles lie close together, so a cluster's box is small. In scene order
+    a grid's cluster is a strip across the whole grid, which met every page of its row (a
+    tessellated ground drew each cluster into most pages)."""
+    if not len(faces):
+        return faces
+    centroids = vertices[faces].astype(np.float64).mean(axis=1)
+    low, high = centroids.min(axis=0), centroids.max(axis=0)
+    cells = ((centroids - low) / np.maximum(high - low, 1e-30) * 1023).astype(np.uint64)
+    code = np.zeros(len(faces), np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return faces[np.argsort(code, kind="stable")]
+
+
 def clustering(triangles: int) -> tuple[int, int]:
     """(clusters, triangles per cluster) of a scene of ``triangles``."""
     per = max(CLUSTER_TRIANGLES, -(-triangles // MAX_CLUSTERS))
@@ -105,10 +122,11 @@ def barrier() -> None:
 
 class PagePool:
     """The page table for ``table_size`` entries, a pool of ``pool_pages`` tiles of ``page``
-    texels, and the passes over them."""
+    texels, the scene's ``faces`` (indices into its vertex buffer, in :func:`spatial_order`)
+    cut into clusters, and the passes over them."""
 
     def __init__(self, pool_pages: int, page: int, table_size: int, level_count: int,
-                 triangles: int):
+                 faces: np.ndarray):
         self.pool_pages, self.page, self.table_size = pool_pages, page, table_size
         self.tiles = pool_tiles(pool_pages)
         self.pool_res = self.tiles * page
@@ -135,8 +153,11 @@ class PagePool:
         self.counters = Buffer(COUNTERS * 4)
         self.free = Buffer(pool_pages * 4)
         self.jobs = Buffer(pool_pages * 16)
-        self.clusters, self.cluster_triangles = clustering(triangles)
-        self.triangles = triangles
+        self.clusters, self.cluster_triangles = clustering(len(faces))
+        self.triangles = len(faces)
+        self.indices = Buffer(faces.nbytes, np.ascontiguousarray(faces, np.uint32))
+        self.vao = GL.glGenVertexArrays(1)
+        self.geometry = None  # the scene mesh whose vertex buffer the VAO reads
         self.bounds = Buffer(self.clusters * 32)
         self.capacity = pool_pages * self.clusters
         self.commands = Buffer(self.capacity * 20)
@@ -223,9 +244,20 @@ class PagePool:
         return int(self.counts()[INVALIDATED]) - before
 
     def box_clusters(self, frame: Frame) -> None:
-        """The caster clusters' boxes from the scene's buffers as they are now."""
+        """The caster clusters' boxes from the scene's vertex buffer as it is now (the VAO of
+        the page draws reads it too)."""
+        # by the mesh, not its buffer's name: a name freed and given again is another buffer
+        if self.geometry is not frame.geometry:
+            GL.glBindVertexArray(self.vao)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, frame.geometry.vbo)
+            GL.glEnableVertexAttribArray(0)
+            GL.glVertexAttribPointer(0, 3, GL.GL_FLOAT, GL.GL_FALSE, 12, ctypes.c_void_p(0))
+            GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.indices.id)
+            GL.glBindVertexArray(0)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
+            self.geometry = frame.geometry
         GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 6, frame.geometry.vbo)
-        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, 7, frame.geometry.ebo)
+        self.indices.bind(7)
         self.bounds.bind(8)
         self.cluster_bounds.use().set(clusters=self.clusters,
                                       cluster_triangles=self.cluster_triangles,
@@ -233,7 +265,7 @@ class PagePool:
         GL.glDispatchCompute(-(-self.clusters // 64), 1, 1)
         barrier()
 
-    def render_jobs(self, frame: Frame, jobs: int, level_uniforms: dict) -> int:
+    def render_jobs(self, jobs: int, level_uniforms: dict) -> int:
         """Empty the jobs' tiles, cull the clusters per job, draw them into the tiles; the
         number of cluster draws."""
         if jobs == 0:
@@ -260,7 +292,7 @@ class PagePool:
             GL.glEnable(GL.GL_CLIP_DISTANCE0 + plane)
         self.draw.use().set(pool_tiles=self.tiles, pool_res=float(self.pool_res),
                             **level_uniforms)
-        GL.glBindVertexArray(frame.geometry.vao)
+        GL.glBindVertexArray(self.vao)
         GL.glBindBuffer(GL.GL_DRAW_INDIRECT_BUFFER, self.commands.id)
         GL.glMultiDrawElementsIndirect(GL.GL_TRIANGLES, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0),
                                        draws, 0)
@@ -281,11 +313,11 @@ class PagePool:
 
     def release(self) -> None:
         for buffer in (self.levels, self.entries, self.requests, self.counters, self.free,
-                       self.jobs, self.bounds, self.commands):
+                       self.jobs, self.bounds, self.commands, self.indices):
             buffer.release()
         for program in (*self.programs.values(), self.cull, self.clear_tiles,
                         self.cluster_bounds, self.draw):
             program.release()
         GL.glDeleteTextures([self.pool])
-        GL.glDeleteVertexArrays(1, [self.empty_vao])
+        GL.glDeleteVertexArrays(2, [self.empty_vao, self.vao])
         GL.glDeleteFramebuffers(1, [self.fbo])

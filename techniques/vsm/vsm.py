@@ -22,7 +22,8 @@ from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUN
                                           depth_precision, sampling_uniforms)
 
 from .levels import Levels, choose_levels, level_chain, pixel_angle, sequence_bounds, top_frustum
-from .pages import ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles
+from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles,
+                    spatial_order)
 
 HERE = Path(__file__).parent
 MAX_POOL_TEXELS = 16384  # the pool is one square texture (GL_MAX_TEXTURE_SIZE on llvmpipe)
@@ -149,8 +150,9 @@ class VirtualShadowMap(Technique):
         self.bounds = sequence_bounds(frame.sequence)
         self.top = top_frustum(frame.scene.light, self.bounds)
         levels = self.chain(frame)
+        vertices, faces = frame.scene.indexed
         self.pages = PagePool(p.pool_pages, p.page, levels.table_size, levels.count,
-                              len(frame.scene.triangles))
+                              spatial_order(vertices, faces))
         self.mark = ComputeProgram(HERE / "vsm_mark.comp.glsl")
         defines = {"PCF": 1} if p.filter == "pcf" else {}
         self.shading = self.shader(__file__, "fullscreen.vert.glsl", "vsm_shading.frag.glsl",
@@ -254,7 +256,7 @@ class VirtualShadowMap(Technique):
                 self.pages.invalidate(uniforms, True, [])
             c = self.pages.allocate(uniforms)
         with frame.measure("page_render"):
-            draws = self.pages.render_jobs(frame, int(c[JOBS]), uniforms)
+            draws = self.pages.render_jobs(int(c[JOBS]), uniforms)
         with frame.measure("shading"):
             frame.begin_visibility()
             self.shading.use()

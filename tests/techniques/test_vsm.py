@@ -17,6 +17,7 @@ from techniques.sm import ShadowMap
 from techniques.vsm import VirtualShadowMap
 from techniques.vsm import vsm as vsm_module
 from techniques.vsm.levels import choose_levels, map_texels, natural_level, pixel_angle
+from techniques.vsm.pages import spatial_order
 
 MOTION_SCENES = ROOT / "experiments" / "motion" / "scenes.yaml"
 # A float32 computation of a level or a page index can fall either way within this much of a
@@ -271,3 +272,28 @@ def test_point_lights_are_declined():
     wrong. Catches declines_lights left at the default or emptied."""
     assert "six" in VirtualShadowMap.declines_lights["point"]
     assert vsm_module.VirtualShadowMap.declines_lights.keys() == {"point"}
+
+
+def test_spatial_order_keeps_every_face_and_makes_clusters_compact():
+    """A 200 x 200 grid of quads (80,000 triangles, in row order as a tessellated ground is
+    written): in spatial order every face is kept once, and the boxes of clusters of 64
+    consecutive triangles have on average at most half the width + height they have in row
+    order (a row-order cluster is a strip 32 quads long, or two rows' ends: 53 quads on
+    average; in Z order 20). Width + height is what sets how many pages a box meets (about
+    1 + (w + h) / page for a page wider than the box). Catches the order left as written."""
+    n = 200
+    u, v = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    vertices = np.c_[u.ravel(), v.ravel(), np.zeros(u.size)].astype(np.float32)
+    corner = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    faces = np.concatenate([np.c_[corner, corner + n + 1, corner + 1],
+                            np.c_[corner + 1, corner + n + 1, corner + n + 2]]).astype(np.uint32)
+    faces = faces.reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)  # quad by quad, row order
+
+    def mean_box_side(order):
+        boxes = vertices[order].reshape(-1, 64 * 3, 3)
+        extent = boxes.max(axis=1) - boxes.min(axis=1)
+        return float((extent[:, 0] + extent[:, 1]).mean())
+
+    ordered = spatial_order(vertices, faces)
+    assert sorted(map(tuple, ordered)) == sorted(map(tuple, faces))
+    assert mean_box_side(ordered) <= 0.5 * mean_box_side(faces)
