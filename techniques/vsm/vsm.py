@@ -55,8 +55,9 @@ class VirtualShadowMap(Technique):
     pixel moves a level coarser and marks again until they fit (``pages_coarsened`` counts
     the levels); unrequested pages free their tiles to a ring on the GPU, requested ones take
     theirs from it, and a requested page whose depths are not current becomes a job; page
-    rendering: per job, the caster clusters whose box meets the page's column are drawn into
-    its tile (one multi-draw of indirect commands made on the GPU); shading
+    rendering: per job, the caster clusters (runs of triangles in Z order of their centroids,
+    pages.spatial_order) whose box meets the page's column are drawn into its tile (one
+    multi-draw of indirect commands made on the GPU); shading
     (vsm_shading.frag.glsl): Williams' test, or 3 x 3 PCF across page borders, through the
     page table, with shadow_map.glsl's bias in the level's texels.
 
