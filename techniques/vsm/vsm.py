@@ -297,7 +297,8 @@ class VirtualShadowMap(Technique):
         c, levels = self.counts, self.levels
         maps = [(proj @ view, res) for view, proj, res in zip(levels.views, levels.projs,
                                                               levels.res)]
-        return {**texels_per_pixel(frame, maps, self.level_map(frame)), "pages_marked": c.marked, "pages_allocated": c.allocated,
+        return {**texels_per_pixel(frame, maps, self.level_map(frame)),
+                "pages_marked": c.marked, "pages_allocated": c.allocated,
                 "pages_rendered": c.rendered, "cache_hits": c.hits,
                 "pages_coarsened": c.coarsened, "page_draws": c.draws,
                 "pages_invalidated": c.invalidated}
