@@ -152,6 +152,13 @@ COLUMN_TABLE: tuple[Column, ...] = (
            "3 vertices`)", "when nothing was skipped"),
     Column("code_version", str, "", "hash of the technique's code (module, imported siblings, "
            "shaders): rows of an older version are stale (see below)"),
+    Column("texels_per_pixel_median", float, "ratio", "a map technique's texel side over the "
+           "pixel's, both on the receiver's plane (1 / sqrt of the area a pixel covers in "
+           "the map's texels, as the technique reports it): the median over the pixels the "
+           "light reaches; below 1 the map is finer than the view, above 1 coarser (aliasing)",
+           "for a technique without a depth map (sv, ptsv, rt), or the run failed"),
+    Column("texels_per_pixel_p95", float, "ratio", "the 95th percentile of that ratio",
+           "as texels_per_pixel_median"),
     Column("ref_samples", int, "count", "reference samples per pixel"),
     Column("ref_seconds", float, "s", "time the reference took to trace when it was computed "
            "(a cached reference keeps that figure)", "where the scene could not be prepared"),

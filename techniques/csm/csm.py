@@ -16,6 +16,7 @@ from harness.gl.reduction import CoveredRange
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, any_perpendicular_up, box_corners, look_at
 
+from techniques.common.footprint import texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, EMPTY_DEPTH,
                                           MAX_BIAS, MAX_TEXELS, BiasMode, LightDepthMap,
                                           alpha_fetches_per_px, bias_uniforms, depth_precision)
@@ -316,14 +317,19 @@ class CascadedShadowMap(Technique):
                              slope_bias=p.slope_bias, normal_offset=p.normal_offset,
                              depth_precision=precision, **bias_uniforms(p.bias_mode))
             frame.draw_fullscreen(covered_only=True)  # V = 1 where no surface
+        cascades = self.cascade_map(frame)
         return frame.output(mem_bytes=sum(m.mem_bytes for m in self.maps),
                             fetches_per_px=1 + alpha_fetches_per_px(frame, *self.maps),
                             nonfinite=sum(m.nonfinite for m in self.maps),
-                            extra=self.columns(), maps={"cascade": self.cascade_map(frame)})
+                            extra=self.columns(frame, cascades), maps={"cascade": cascades})
 
-    def columns(self) -> dict:
+    def columns(self, frame: Frame, cascades: np.ndarray) -> dict:
+        """The cascades' columns and the texels per pixel of the cascade each pixel used."""
+        used = np.nan_to_num(cascades, nan=-1)
         return {**{f"split_{i}": float(d) for i, d in enumerate(self.splits)},
-                **{f"cascade_texel_{i}": c.texel_world for i, c in enumerate(self.cascades)}}
+                **{f"cascade_texel_{i}": c.texel_world for i, c in enumerate(self.cascades)},
+                **texels_per_pixel(frame, [(c.frustum.view_proj, self.params.res)
+                                           for c in self.cascades], used)}
 
     def cascade_map(self, frame: Frame) -> np.ndarray:
         """Which cascade each covered pixel used (NaN elsewhere): a diagnostic, untimed."""

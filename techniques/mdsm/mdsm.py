@@ -17,6 +17,7 @@ from harness.config import SquareInt
 from harness.gl.framebuffer import Framebuffer
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, FilteredShadowMap, Sampling,
                                           alpha_fetches_per_px)
@@ -252,7 +253,8 @@ class MultipleDepthShadowMap(Technique):
             mem_bytes=base.mem_bytes + (self.selection.mem_bytes if self.selection else 0),
             fetches_per_px=p.k + alpha_fetches_per_px(frame, base), nonfinite=base.nonfinite,
             extra={"select_fetches": q * p.res * p.res, "select_fetches_per_cell": q,
-                       "shaded_px": shaded, "shading_fetches": shaded * p.k})
+                       "shaded_px": shaded, "shading_fetches": shaded * p.k,
+                   **light_map_texels_per_pixel(frame, base)})
 
     def release(self) -> None:
         self.passes.release()

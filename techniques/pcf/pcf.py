@@ -11,6 +11,7 @@ from pydantic import Field, model_validator
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TUNING, MAX_BIAS, MAX_TEXELS,
                                           BiasMode, FilteredShadowMap, Sampling,
                                           alpha_fetches_per_px)
@@ -142,7 +143,8 @@ class PercentageCloserFiltering(Technique):
             bias_mode=p.bias_mode))
         fetches = p.k + alpha_fetches_per_px(frame, self.passes.map)
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
-                            nonfinite=self.passes.map.nonfinite)
+                            nonfinite=self.passes.map.nonfinite,
+                            extra=light_map_texels_per_pixel(frame, self.passes.map))
 
     def release(self) -> None:
         self.passes.release()

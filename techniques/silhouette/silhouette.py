@@ -15,6 +15,7 @@ from harness.gl.shaders import Program
 from harness.technique import AlphaPolicy, Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import LightFrustum, fit_light
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, LightDepthMap, bias_uniforms)
 from .silhouette_edges import QUAD_HALF_WIDTH, EdgeAdjacency, EdgeMesh
@@ -235,7 +236,8 @@ class SilhouetteMap(Technique):
             nonfinite=self.depth_map.nonfinite,
             extra={"sil_pct": 100.0 * share,
                    "model_bytes_per_px": MODEL_DEPTH_BYTES + MODEL_SILHOUETTE_BYTES * share,
-                   "silhouette_edges": self.edge_count})
+                   "silhouette_edges": self.edge_count,
+                   **light_map_texels_per_pixel(frame, self.depth_map)})
 
     def silhouette_points(self) -> np.ndarray:
         """The silhouette map as (res, res, 2) texel-local points, row j = map row j."""

@@ -8,6 +8,7 @@ from pydantic import Field
 
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, MapShading, alpha_fetches_per_px,
                                           bias_uniforms)
@@ -90,7 +91,8 @@ class ShadowMap(Technique):
         # one depth read per pixel, and the depth pass's alpha texels where casters are cut out
         fetches = 1 + alpha_fetches_per_px(frame, self.passes.map)
         return frame.output(mem_bytes=self.passes.map.mem_bytes, fetches_per_px=fetches,
-                            nonfinite=self.passes.map.nonfinite)
+                            nonfinite=self.passes.map.nonfinite,
+                            extra=light_map_texels_per_pixel(frame, self.passes.map))
 
     def release(self) -> None:
         self.passes.release()

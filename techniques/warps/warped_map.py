@@ -18,6 +18,7 @@ from harness.truth import metrics
 from harness.config import SquareInt
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
 
+from techniques.common.footprint import light_map_texels_per_pixel
 from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUNING, MAX_BIAS,
                                           MAX_TEXELS, BiasMode, LightDepthMap,
                                           alpha_fetches_per_px, bias_uniforms)
@@ -177,7 +178,9 @@ class WarpedShadowMap(Technique):
         return frame.output(mem_bytes=self.map.mem_bytes,
                             fetches_per_px=p.k + alpha_fetches_per_px(frame, self.map),
                             nonfinite=self.map.nonfinite + metrics.nonfinite(self.transform.clip),
-                            extra=dict(self.columns), warnings=warnings,
+                            extra={**self.columns,
+                                   **light_map_texels_per_pixel(frame, self.map)},
+                            warnings=warnings,
                             maps={"pixels_per_texel_log2": self.alias_log2})
 
     def release(self) -> None:

@@ -1,0 +1,82 @@
+"""How a map's texels compare with the camera's pixels on the receivers: the
+``texels_per_pixel`` columns every map technique reports (a diagnostic, untimed, float64)."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from harness.technique import Frame
+from harness.truth.metrics import receives_light
+
+from .light_maps import CubeDepthMap, LightDepthMap, camera_rays
+
+
+def texel_over_pixel(frame: Frame, view_projs: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Per receiver pixel (the ``receivers`` mask's order), the side of the map texel it reads
+    over the side of the pixel, both taken on the receiver's plane: 1 / sqrt|det J|, J the
+    2 x 2 derivative of the map's texel position along the plane by window position
+    (the map texel's area over the pixel's footprint's, square-rooted: below 1 the map has
+    finer texels than the view's pixels, above 1 coarser). ``view_projs`` (N, 4, 4) world ->
+    clip and ``res`` (N,) texels per side of the map each pixel reads."""
+    a = frame.arrays
+    mask = receivers(frame)
+    point = a.position[mask].astype(np.float64)
+    normal = a.normal[mask].astype(np.float64)
+    rows, cols = np.nonzero(mask)
+    rays = camera_rays(frame)
+    origin = rays["camera_position"]
+    x = cols + 0.5
+    y = frame.height - 1 - rows + 0.5
+    ray = rays["camera_ray"] + x[:, None] * rays["camera_ray_dx"] + y[:, None] * rays["camera_ray_dy"]
+    facing = (normal * ray).sum(1)
+    t = (normal * (point - origin)).sum(1) / facing
+    # d point / d window along the receiver plane (the ray's hit moves with the ray)
+    along = [t[:, None] * (d - ((normal @ d) / facing)[:, None] * ray)
+             for d in (rays["camera_ray_dx"], rays["camera_ray_dy"])]
+    clip = np.einsum("nij,nj->ni", view_projs, np.c_[point, np.ones(len(point))])
+    scale = 0.5 * res / clip[:, 3]
+    rows_xy = [(view_projs[:, i, :3] - (clip[:, i] / clip[:, 3])[:, None] * view_projs[:, 3, :3])
+               * scale[:, None] for i in (0, 1)]
+    jacobian = np.array([[(r * d).sum(1) for d in along] for r in rows_xy])  # (2, 2, N)
+    det = jacobian[0, 0] * jacobian[1, 1] - jacobian[0, 1] * jacobian[1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 1.0 / np.sqrt(np.abs(det))
+
+
+def receivers(frame: Frame) -> np.ndarray:
+    """The pixels the light reaches (harness.truth.metrics.receives_light) that the view covers."""
+    a = frame.arrays
+    return a.covered & receives_light(a.normal, a.position, frame.scene.light,
+                                      frame.camera.position)
+
+
+def texels_per_pixel(frame: Frame, maps: Sequence[tuple[np.ndarray, float]],
+                     choice: np.ndarray | None = None) -> dict:
+    """The ``texels_per_pixel_median`` and ``texels_per_pixel_p95`` columns over the receivers
+    (texel_over_pixel): ``maps`` the (world -> clip matrix, texels per side) of each map the
+    technique reads, ``choice`` (H, W) the map index each pixel reads (all the first where
+    None; a pixel with a negative index is left out). None where no pixel counts."""
+    mask = receivers(frame)
+    index = np.zeros(int(mask.sum()), np.int64) if choice is None else choice[mask].astype(np.int64)
+    matrices = np.array([m for m, _ in maps], np.float64)
+    sizes = np.array([r for _, r in maps], np.float64)
+    ratio = texel_over_pixel(frame, matrices[np.maximum(index, 0)], sizes[np.maximum(index, 0)])
+    ratio = ratio[(index >= 0) & np.isfinite(ratio)]
+    if not ratio.size:
+        return {"texels_per_pixel_median": None, "texels_per_pixel_p95": None}
+    return {"texels_per_pixel_median": float(np.median(ratio)),
+            "texels_per_pixel_p95": float(np.percentile(ratio, 95))}
+
+
+def light_map_texels_per_pixel(frame: Frame, light_map: LightDepthMap | CubeDepthMap) -> dict:
+    """texels_per_pixel of one light depth map: its frustum, or a point light's cube, each
+    pixel reading the face its direction from the light falls in (CUBE_AXES' order)."""
+    if isinstance(light_map, LightDepthMap):
+        return texels_per_pixel(frame, [(light_map.frustum.view_proj, light_map.res)])
+    away = frame.arrays.position.astype(np.float64) - frame.scene.light.position
+    axis = np.abs(away).argmax(axis=-1)
+    face = 2 * axis + (np.take_along_axis(away, axis[..., None], -1)[..., 0] < 0)
+    return texels_per_pixel(frame, [(f.view_proj, light_map.size) for f in light_map.faces],
+                            face)

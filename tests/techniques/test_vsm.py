@@ -1,0 +1,299 @@
+"""Virtual shadow maps (techniques/vsm): the pages marked on the GPU against a NumPy float64
+oracle, visibility against sm at the same effective resolution, the page cache under motion,
+and bad parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from harness import cli, config
+from harness.scene import build_scene
+from harness.technique import Frame, reset_gl_state
+from harness.truth.metrics import receives_light
+from helpers import ROOT
+from techniques.sm import ShadowMap
+from techniques.vsm import VirtualShadowMap
+from techniques.vsm import vsm as vsm_module
+from techniques.vsm.levels import choose_levels, map_texels, natural_level, pixel_angle
+from techniques.vsm.pages import spatial_order
+
+MOTION_SCENES = ROOT / "experiments" / "motion" / "scenes.yaml"
+# A float32 computation of a level or a page index can fall either way within this much of a
+# boundary (log2 of the footprint ratio; texels): such pixels are ties, not errors.
+LEVEL_TIE = 1e-4
+TEXEL_TIE = 1e-2
+
+
+def run(frame, technique=None, **params):
+    """(V, the technique) after update and render on ``frame``; a new technique unless given
+    (then left prepared)."""
+    own = technique is None
+    technique = technique or VirtualShadowMap(VirtualShadowMap.Params(**params))
+    if own:
+        technique.prepare(frame)
+    technique.update(frame)
+    output = technique.render(frame)
+    reset_gl_state()
+    return output, technique
+
+
+def gpu_pages(technique) -> set[tuple[int, int, int]]:
+    """The pages the last render requested, as (level, global x, global y)."""
+    levels = technique.levels
+    requested = np.flatnonzero(technique.pages.requested())
+    found = set()
+    for index in requested:
+        k = int(np.searchsorted(levels.bases, index, side="right") - 1)
+        n, origin = int(levels.pages[k]), levels.origins[k]
+        m = np.array([(index - levels.bases[k]) % n, (index - levels.bases[k]) // n])
+        g = origin + np.mod(m - origin, n)
+        found.add((k, int(g[0]), int(g[1])))
+    return found
+
+
+def oracle_pages(frame, technique, bias: int = 0):
+    """The (level, global page) sets of the marked pixels in float64: those of pixels clear of
+    every boundary, and those a float32 computation may also reach (a tie pixel's levels one
+    either side, its texel moved by TEXEL_TIE)."""
+    levels, a = technique.levels, frame.arrays
+    eye = frame.camera.position
+    lit = a.covered & receives_light(a.normal, a.position, frame.scene.light, eye)
+    points = a.position[lit].astype(np.float64)
+    angle = pixel_angle(frame.camera.proj, frame.height)
+    k = choose_levels(levels, points, eye, angle, bias)
+    _, ratio = natural_level(levels, points, eye, angle)
+    texel = map_texels(levels, k, points)
+    near_page_edge = np.abs(texel / levels.page - np.round(texel / levels.page)) * levels.page
+    window = [np.abs(map_texels(levels, np.full(len(points), j), points) - edge).min(axis=1)
+              for j in range(levels.nested)
+              for edge in (levels.page, levels.res[j] - levels.page)]
+    tie = (np.abs(ratio - np.round(ratio)) < LEVEL_TIE) | (near_page_edge < TEXEL_TIE).any(axis=1)
+    for distance in window:
+        tie |= distance < TEXEL_TIE
+    inside = ((texel >= 0) & (texel < levels.res[k][:, None])).all(axis=1)
+
+    def pages(levels_of, texels, where):
+        local = np.floor(texels[where] / levels.page).astype(np.int64)
+        g = levels.origins[levels_of[where]] + local
+        return {(int(j), int(x), int(y)) for j, (x, y) in zip(levels_of[where], g)}
+
+    certain = pages(k, texel, ~tie & inside)
+    possible = set(certain)
+    for shift in (-1, 0, 1):
+        j = np.clip(k + shift, 0, levels.count - 1)
+        texels = map_texels(levels, j, points)
+        for dx in (-TEXEL_TIE, 0, TEXEL_TIE):
+            for dy in (-TEXEL_TIE, 0, TEXEL_TIE):
+                moved = texels + [dx, dy]
+                ok = tie & ((moved >= 0) & (moved < levels.res[j][:, None])).all(axis=1)
+                possible |= pages(j, moved, ok)
+    return certain, possible, k[~tie]
+
+
+@pytest.mark.parametrize("scene_name, size", [("castle", 96), ("terrain_long", 96),
+                                              ("sphere_plane", 64)])
+def test_marked_pages_are_the_oracles(scene_name, size, gl_context, scene_at):
+    """Every pixel whose visible side faces the light marks the page of its texel in the level
+    whose texel is the largest not above its footprint (levels.choose_levels in float64, the
+    nested windows' edges included): the GPU's set of (level, global page) holds every page
+    of the pixels clear of a boundary and nothing a float32 tie could not reach. castle and
+    terrain_long (directional: clipmap levels and mips, several in use), sphere_plane (a spot
+    light's mips). Catches the level from the wrong footprint (one level off: every page at
+    another level)."""
+    frame = Frame(scene_at(scene_name, size))
+    try:
+        output, technique = run(frame, virtual_res=4096, page=64)
+        found = gpu_pages(technique)
+        certain, possible, levels_used = oracle_pages(frame, technique)
+        technique.release()
+    finally:
+        frame.release()
+    assert output.extra["pages_coarsened"] == 0
+    assert len(set(levels_used.tolist())) >= 2, "the scene should use several levels"
+    assert certain <= found, sorted(certain - found)[:5]
+    assert found <= possible, sorted(found - possible)[:5]
+
+
+def test_a_full_pool_coarsens_until_the_pages_fit(gl_context, scene_at):
+    """With a pool smaller than the natural pages (castle at 96 x 96), every pixel moves up
+    by the smallest number of levels at which its pages fit: the oracle's set at that bias
+    fits the pool and the one a level finer does not; the GPU marks the oracle's set. Catches
+    an overflow that is not coarsened (pages dropped) or one coarsened a level too far."""
+    frame = Frame(scene_at("castle", 96))
+    try:
+        _, whole = run(frame, virtual_res=4096, page=64)
+        natural = len(gpu_pages(whole))
+        whole.release()
+        pool = natural // 3
+        output, technique = run(frame, virtual_res=4096, page=64, pool_pages=pool)
+        bias = output.extra["pages_coarsened"]
+        found = gpu_pages(technique)
+        certain, possible, _ = oracle_pages(frame, technique, bias)
+        finer, _, _ = oracle_pages(frame, technique, bias - 1)
+        technique.release()
+    finally:
+        frame.release()
+    assert bias >= 1 and len(found) <= pool < len(finer)
+    assert certain <= found <= possible
+
+
+def levels_used(frame, technique) -> np.ndarray:
+    """Each pixel's level by the float64 oracle, -1 where a float32 choice may differ."""
+    levels, a = technique.levels, frame.arrays
+    eye = frame.camera.position
+    points = a.position.reshape(-1, 3).astype(np.float64)
+    angle = pixel_angle(frame.camera.proj, frame.height)
+    k = choose_levels(levels, points, eye, angle)
+    _, ratio = natural_level(levels, points, eye, angle)
+    k[np.abs(ratio - np.round(ratio)) < LEVEL_TIE] = -1
+    return k.reshape(a.covered.shape)
+
+
+@pytest.mark.parametrize("scene_name", ["castle", "sphere_plane"])
+def test_visibility_equals_sm_at_the_same_effective_resolution(scene_name, gl_context,
+                                                               scene_at):
+    """With one clipmap level (directional: the light's map frustum, sm's, then its mips; a
+    spot: its cone's mips) and every page in the pool, a pixel using mip m is tested exactly
+    as sm's map of virtual_res / 2^m texels tests it: the same frustum, the same texel grid,
+    the same shadow_map.glsl arithmetic. V equals sm's there except on ties (a texel centre on
+    a caster's edge rasterised either way after the page's remap to its tile): at most 0.2 %
+    of the pixels. Catches a page drawn at an offset into its tile (every shadow edge moves by
+    a texel) or a read of the wrong tile."""
+    frame = Frame(scene_at(scene_name, 128))
+    compared = differing = 0
+    try:
+        output, technique = run(frame, virtual_res=4096, page=64, levels=1, pool_pages=4096)
+        used = levels_used(frame, technique)
+        res = technique.levels.res
+        technique.release()
+        for k in np.unique(used[frame.arrays.covered]):
+            if k < 0 or res[k] < 16:
+                continue
+            sm = ShadowMap(ShadowMap.Params(res=int(res[k])))
+            sm.prepare(frame)
+            sm.update(frame)
+            v = sm.render(frame).visibility
+            sm.release()
+            reset_gl_state()
+            here = frame.arrays.covered & (used == k)
+            compared += here.sum()
+            differing += (v[here] != output.visibility[here]).sum()
+    finally:
+        frame.release()
+    assert compared > 0.9 * frame.arrays.covered.sum()
+    assert differing <= 0.002 * compared, (differing, compared)
+
+
+def motion_frame(name: str, size: int = 96) -> Frame:
+    scenes = config.load_scenes(MOTION_SCENES)
+    scene = build_scene(name, scenes[name], MOTION_SCENES).with_resolution(size, size)
+    return Frame(scene)
+
+
+# the caster's first and last frames (its orbit's quarter turn apart, so its old shadow lies
+# on pages its new box does not reach), 6 frames of the light's and of the camera's orbits
+@pytest.mark.parametrize("scene_name, size, frames", [("box_plane_caster", 160, (0, 15)),
+                                                      ("box_plane_light", 96, range(0, 48, 8)),
+                                                      ("box_plane_camera", 96, range(0, 48, 8))])
+def test_cached_frames_equal_fresh_uncached_ones(scene_name, size, frames, gl_context):
+    """Along a moving sequence, the cached technique's V at each frame equals a fresh uncached
+    technique's on that frame, bit for bit: the box tumbling and orbiting (its pages dropped
+    where its old or new box meets them), the light orbiting (every page dropped), the camera
+    orbiting over a still scene (only newly marked pages rendered). Where only the caster
+    moves, fewer pages are rendered than marked. Catches the moving object's old pose not
+    invalidated (its old shadow stays in cached pages)."""
+    frame = motion_frame(scene_name, size)
+    cached = VirtualShadowMap(VirtualShadowMap.Params(virtual_res=4096, page=64))
+    rendered, marked = [], []
+    try:
+        cached.prepare(frame)
+        for t in frames:
+            frame.move_to(t)
+            output, _ = run(frame, cached)
+            fresh, technique = run(frame, virtual_res=4096, page=64, cache=False)
+            technique.release()
+            np.testing.assert_array_equal(output.visibility, fresh.visibility, err_msg=f"{t}")
+            if t:
+                rendered.append(output.extra["pages_rendered"])
+                marked.append(output.extra["pages_marked"])
+    finally:
+        cached.release()
+        frame.release()
+    if scene_name == "box_plane_light":
+        assert rendered == marked
+    else:
+        assert sum(rendered) < sum(marked)
+
+
+def test_the_moved_box_holds_the_old_and_the_new_pose(gl_context):
+    """The boxes a moved part invalidates hold its vertices at its previous pose and at its
+    new one (from the scene's own moved parts). Catches a box from one pose only."""
+    frame = motion_frame("box_plane_caster")
+    technique = VirtualShadowMap(VirtualShadowMap.Params(virtual_res=4096, page=64))
+    try:
+        technique.prepare(frame)
+        technique.update(frame)
+        before = [p.vertices.astype(np.float64) for p in frame.scene.parts]
+        frame.move_to(3)
+        boxes = technique.moved_boxes(frame.part_poses)
+        after = [p.vertices.astype(np.float64) for p in frame.scene.parts]
+        technique.release()
+    finally:
+        frame.release()
+    moved = [i for i, (b, a) in enumerate(zip(before, after)) if not np.array_equal(b, a)]
+    assert len(boxes) == 2 * len(moved) >= 2
+    for (low, high), vertices in zip(boxes, [before[moved[0]], after[moved[0]]]):
+        np.testing.assert_allclose(low, vertices.min(axis=0), atol=1e-5)
+        np.testing.assert_allclose(high, vertices.max(axis=0), atol=1e-5)
+
+
+@pytest.mark.parametrize("key, value", [("virtual_res", 6144), ("virtual_res", 2048),
+                                        ("page", 96), ("pool_pages", 20000),
+                                        ("pool_pages", 0), ("filter", "pcss")])
+def test_bad_parameters_exit_2_naming_the_file_and_key(key, value, tmp_path, capsys):
+    """virtual_res not a power of two (or below 4096), a page that does not divide it, a pool
+    larger than one texture can hold or empty, an unknown filter: exit 2, one line naming the
+    experiment file and vsm.<key>, nothing written. Catches a missing check on each."""
+    with pytest.raises(ValidationError, match=key):
+        VirtualShadowMap.Params(**{key: value})
+    experiment = tmp_path / "bad.yaml"
+    experiment.write_text(f"techniques:\n  vsm: {{set: {{{key}: {value}}}}}\n")
+    out = tmp_path / "out"
+    assert cli.main(["run", str(experiment), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.yaml" in err[0] and f"vsm.{key}" in err[0], err
+    assert not out.exists()
+
+
+def test_point_lights_are_declined():
+    """A point light is declined with its reason (six virtual maps not built), not rendered
+    wrong. Catches declines_lights left at the default or emptied."""
+    assert "six" in VirtualShadowMap.declines_lights["point"]
+    assert vsm_module.VirtualShadowMap.declines_lights.keys() == {"point"}
+
+
+def test_spatial_order_keeps_every_face_and_makes_clusters_compact():
+    """A 200 x 200 grid of quads (80,000 triangles, in row order as a tessellated ground is
+    written): in spatial order every face is kept once, and the boxes of clusters of 64
+    consecutive triangles have on average at most half the width + height they have in row
+    order (a row-order cluster is a strip 32 quads long, or two rows' ends: 53 quads on
+    average; in Z order 20). Width + height is what sets how many pages a box meets (about
+    1 + (w + h) / page for a page wider than the box). Catches the order left as written."""
+    n = 200
+    u, v = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    vertices = np.c_[u.ravel(), v.ravel(), np.zeros(u.size)].astype(np.float32)
+    corner = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    faces = np.concatenate([np.c_[corner, corner + n + 1, corner + 1],
+                            np.c_[corner + 1, corner + n + 1, corner + n + 2]]).astype(np.uint32)
+    faces = faces.reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)  # quad by quad, row order
+
+    def mean_box_side(order):
+        boxes = vertices[order].reshape(-1, 64 * 3, 3)
+        extent = boxes.max(axis=1) - boxes.min(axis=1)
+        return float((extent[:, 0] + extent[:, 1]).mean())
+
+    ordered = spatial_order(vertices, faces)
+    assert sorted(map(tuple, ordered)) == sorted(map(tuple, faces))
+    assert mean_box_side(ordered) <= 0.5 * mean_box_side(faces)
