@@ -88,7 +88,7 @@ def test_rt_equals_sv_but_for_ties_on_shadow_edges(path, name, frames):
     for at most 0.5% of them, each on a shadow boundary of sv's V (a point whose ray grazes a
     silhouette: the two exact methods round differently there), and for sv's own errors
     (``SV_WRONG``, counted, where the embree backend's rays agree with rt's). Run against an origin offset
-    of 0 (OFFSET_ULPS 0 in rt_offset.glsl) it fails with self-shadowing acne over lit faces
+    of 0 (OFFSET_ULPS 0 in common/ray_offset.glsl) it fails with self-shadowing acne over lit faces
     (castle, crowd, pins ... thousands of pixels off any boundary); against the top level's
     leaves read as instance indices (levels.rebuild_top without ``top.order``) it loses whole
     casters on every scene with several parts."""
