@@ -94,8 +94,8 @@ def test_every_texel_a_thin_triangle_touches_gets_a_fragment(gl_context):
     a fragment, and none more than 1/16 texel beyond the triangle (the raster's margin is
     1/32). Catches plain rasterisation (the geometry shader emitting the triangle itself,
     tried: it fails), a quad grown by less than half a texel (MARGIN alone, tried: fails)
-    and the edge test's outward
-    normal reversed (tried: fails, the texels the triangle covers are dropped)."""
+    and the edge test's outward normal reversed (tried: fails, the texels the triangle
+    covers are dropped)."""
     triangles = thin_triangles(np.random.default_rng(50), 60)
     got = fragments_per_texel(gl_context, triangles) > 0
     for triangle, fragments in zip(triangles, got):
