@@ -5,6 +5,10 @@
 // al. 2015: one G-buffer sample, its tangent plane standing in for the pixel's surface). A
 // sample at offset 0 is the G-buffer point itself, so one centred sample is rt's ray origin.
 // Each sample is moved off its plane as rt moves its ray origin (ray_offset.glsl).
+// With RASTER_SURFACE (`surface: raster`) a dispatch places one sample, `sample_index`, of
+// every pixel instead, exactly on the surface its ray meets: the G-buffer read is then one
+// rendered with the camera moved by that sample's offset (izb.py), whose pixel holds the
+// sample's own point and normal; a sample whose ray meets nothing sets its bit in `missed`.
 // Writes slot pixel * SAMPLES + k of `positions` (w = 1 for a sample to insert, 0 for none)
 // and the pixel's initial mask: the bits of samples whose visible side faces away from the
 // light (shadowed, as rt, never inserted). With FIT_VIEW, merges the light NDC of the samples
@@ -19,7 +23,10 @@ uniform vec4 light;  // (position, 1) for a spot light, (unit vector towards it,
 
 layout(std430, binding = 0) writeonly buffer Positions { vec4 positions[]; };
 layout(std430, binding = 2) buffer Masks { uint masks[]; };
-#ifdef REFERENCE_PATTERN
+#ifdef RASTER_SURFACE
+layout(std430, binding = 6) buffer Missed { uint missed[]; };
+uniform int sample_index;
+#elif defined(REFERENCE_PATTERN)
 layout(std430, binding = 4) readonly buffer Offsets { vec2 pixel_offsets[]; };
 #else
 uniform vec2 offsets[SAMPLES];  // from the pixel's centre, in pixels
@@ -51,16 +58,23 @@ void main() {
     if (any(greaterThanEqual(pixel, size))) {
         return;
     }
-    uint first = uint(pixel.y * size.x + pixel.x) * uint(SAMPLES);
+    uint index = uint(pixel.y * size.x + pixel.x), first = index * uint(SAMPLES);
     vec4 p = texelFetch(gbuffer_position, pixel, 0);
     uint mask = 0u;
     vec2 low = vec2(3.0e38), high = vec2(-3.0e38);
     vec3 n = p.w > 0.5 ? normalize(visible_side(texelFetch(gbuffer_normal, pixel, 0).xyz,
                                                 p.xyz, camera_position)) : vec3(0.0);
-    for (int k = 0; k < SAMPLES; ++k) {
+#ifdef RASTER_SURFACE
+    int begin = sample_index, end = sample_index + 1;
+#else
+    int begin = 0, end = SAMPLES;
+#endif
+    for (int k = begin; k < end; ++k) {
         vec4 sample_at = vec4(0.0);
         if (p.w > 0.5) {
-#ifdef REFERENCE_PATTERN
+#ifdef RASTER_SURFACE
+            vec2 offset = vec2(0.0);  // the G-buffer's own point
+#elif defined(REFERENCE_PATTERN)
             vec2 offset = pixel_offsets[first + uint(k)];
 #else
             vec2 offset = offsets[k];
@@ -82,7 +96,15 @@ void main() {
         }
         positions[first + uint(k)] = sample_at;
     }
-    masks[first / uint(SAMPLES)] = mask;
+#ifdef RASTER_SURFACE
+    // the first sample's dispatch starts the pixel's masks, the later ones add their bit
+    uint bit = 1u << uint(sample_index);
+    uint miss = p.w > 0.5 ? 0u : bit;
+    masks[index] = sample_index == 0 ? mask : masks[index] | mask;
+    missed[index] = sample_index == 0 ? miss : missed[index] | miss;
+#else
+    masks[index] = mask;
+#endif
 #ifdef FIT_VIEW
     if (low.x <= high.x) {
         atomicMin(bounds[0], ordered(low.x));
