@@ -121,12 +121,12 @@ class IrregularZBuffer(Technique):
     Parameter        Meaning                                               Default  Range
     ===============  ====================================================  =======  ==============
     ``samples``      view samples per pixel                                1        1, 4, 8, 16, 32
-    ``pattern``      ``rotated`` (one fixed sub-pixel pattern) or          rotated
-                     ``reference`` (the reference's own positions per
-                     pixel; samples 1, 4 or 16; surface plane)
     ``surface``      ``raster`` (each sample where its camera ray meets    raster
                      the scene: a camera pass per offset) or ``plane``
                      (on the pixel's surface plane, the paper's way)
+    ``pattern``      ``rotated`` (one fixed sub-pixel pattern) or          rotated
+                     ``reference`` (the reference's own positions per
+                     pixel; samples 1, 4 or 16; surface plane)
     ``res``          the grid's width and height, texels (a power of two) 512      16 .. 8192
     ``fit``          ``plain`` (the light frustum) or ``view`` (the        view
                      rectangle of it the view's samples span)
@@ -150,8 +150,8 @@ class IrregularZBuffer(Technique):
 
     class Params(TechniqueParams):
         samples: Literal[SAMPLE_COUNTS] = 1
+        surface: Literal["raster", "plane"] = "raster"
         pattern: Literal["rotated", "reference"] = "rotated"
-        surface: Literal["plane", "raster"] = "raster"
         res: int = Field(512, ge=16, le=MAX_RES)
         fit: Literal["plain", "view"] = "view"
         budget_mib: int = Field(256, ge=1, le=4096)
@@ -170,14 +170,9 @@ class IrregularZBuffer(Technique):
             if value == "reference" and samples not in REFERENCE_COUNTS:
                 raise ValueError(f"reference needs samples 1, 4 or 16 (the reference's "
                                  f"stratified grid is square), got samples {samples}")
-            return value
-
-        @field_validator("surface")
-        @classmethod
-        def _raster_pattern(cls, value: str, info: ValidationInfo) -> str:
-            if value == "raster" and info.data.get("pattern") == "reference":
-                raise ValueError("raster renders one camera pass per sample offset, the same "
-                                 "for every pixel: not the reference's per-pixel positions")
+            if value == "reference" and info.data.get("surface") == "raster":
+                raise ValueError("reference needs surface: plane (raster renders one camera "
+                                 "pass per sample offset, the same for every pixel)")
             return value
 
     @classmethod
