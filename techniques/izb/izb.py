@@ -127,7 +127,8 @@ class IrregularZBuffer(Technique):
     ``pattern``      ``rotated`` (one fixed sub-pixel pattern) or          rotated
                      ``reference`` (the reference's own positions per
                      pixel; samples 1, 4 or 16; surface plane)
-    ``res``          the grid's width and height, texels (a power of two) 512      16 .. 8192
+    ``res``          the grid's width and height, texels (a power of       512      16 .. 8192
+                     two)
     ``fit``          ``plain`` (the light frustum) or ``view`` (the        view
                      rectangle of it the view's samples span)
     ``budget_mib``   refuse a run whose lists could take more MiB          256      1 .. 4096
@@ -137,7 +138,7 @@ class IrregularZBuffer(Technique):
     """
 
     name = "izb"
-    colour = "#8c564b"
+    colour = "#b15928"
     summary = "irregular z-buffer: view samples in light-space lists, casters rasterised " \
               "conservatively and tested exactly"
     paper = ("Johnson, Lee, Burns, Mark 2005, The irregular z-buffer; Wyman, Hoetzlein, Lefohn "
