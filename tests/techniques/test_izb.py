@@ -126,3 +126,18 @@ def test_izb_at_16_samples_goes_below_the_edge_floor(path, name, evaluate):
     assert row["status"] == "ok", row["error"]
     assert row["edge_mae"] < row["edge_floor"], (row["edge_mae"], row["edge_floor"])
     assert row["levels"] > 2
+
+
+def test_the_cost_model_prices_the_counted_lists_and_tests(evaluate, scene_at):
+    """An izb row carries its counted work as the cost model's traversal terms: the samples
+    linked as traversal_nodes, the sample tests as triangle_tests, and gpu_estimate_ms is the
+    model's price of the row, more than the same row priced without them. Catches the counts
+    left in izb's own columns only (the estimate would leave the tests unpriced)."""
+    from harness.analysis import cost_model
+
+    row = evaluate(scene_at("castle", 64), "izb", {"samples": 4}).row
+    assert row["traversal_nodes"] == row["samples_inserted"] > 0
+    assert row["triangle_tests"] == row["sample_tests"] > 0
+    assert row["gpu_estimate_ms"] == pytest.approx(cost_model.estimate_ms(row))
+    without = dict(row, traversal_nodes=0, triangle_tests=0)
+    assert cost_model.estimate_ms(without) < row["gpu_estimate_ms"]
