@@ -12,11 +12,11 @@ import pytest
 
 from harness import config
 from harness.scene import build_scene
-from harness.technique import Frame, NotApplicable, registry, reset_gl_state
-from helpers import ROOT, SCENE_FILE
+from harness.technique import Frame, NotApplicable, registry
+from helpers import ROOT, SCENE_FILE, on_a_boundary, technique_visibility
 
 HARD = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
-SIZE = 64
+RES = 64  # the image size (the frames fixture)
 # the most pixels izb(1) and rt may differ on, as a share of the compared pixels (ties: a
 # sample on a caster's shadow boundary, which the frustum test and the watertight ray test
 # round apart); measured: none differ on any scene or hard case at 64 x 64
@@ -29,46 +29,6 @@ def scenes(path: Path) -> list[tuple[Path, str]]:
 
 SHIPPED = scenes(SCENE_FILE)
 ALL = SHIPPED + scenes(HARD)
-
-
-@pytest.fixture(scope="module")
-def frames(gl_context):
-    made = {}
-    yield made
-    for frame in made.values():
-        frame.release()
-
-
-def frame_of(frames, path: Path, name: str) -> Frame:
-    if (path, name) not in frames:
-        declared = config.load_scenes(path)
-        frames[(path, name)] = Frame(build_scene(name, declared[name], path)
-                                     .with_resolution(SIZE, SIZE))
-    return frames[(path, name)]
-
-
-def visibility(frame: Frame, name: str, params: dict | None = None):
-    """V and the row extras of technique ``name`` on ``frame`` (one update, one render)."""
-    cls = registry.get(name)
-    technique = cls(cls.Params(**(params or {})))
-    try:
-        technique.prepare(frame)
-        technique.update(frame)
-        frame.meter.new_frame(True)
-        out = technique.render(frame)
-        return out.visibility, out.extra
-    finally:
-        technique.release()
-        reset_gl_state()
-
-
-def on_a_boundary(v: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """Whether each of ``pixels`` (a mask) has a 4-neighbour of the other value in ``v``."""
-    padded = np.pad(v, 1, mode="edge")
-    h, w = v.shape
-    neighbours = [padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
-                  for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1))]
-    return pixels & np.any([n != v for n in neighbours], axis=0)
 
 
 def declined(frame: Frame) -> bool:
@@ -95,11 +55,11 @@ def test_izb_at_one_sample_equals_rt_but_for_ties(path, name, fit, frames):
     samples not offset off their plane (self-shadowing: 119 of 3760), and the caster raster
     grown by its margin only, not half a texel (casters lose texels: a difference off any
     edge)."""
-    frame = frame_of(frames, path, name)
+    frame = frames(path, name)
     if declined(frame):
         return
-    rt, _ = visibility(frame, "rt")
-    izb, extra = visibility(frame, "izb", {"fit": fit})
+    rt, _ = technique_visibility(frame, "rt")
+    izb, extra = technique_visibility(frame, "izb", {"fit": fit})
     compared = frame.compared_pixels(frame.arrays.covered)
     differ = (izb != rt) & compared
     assert set(np.unique(izb)) <= {0.0, 1.0}
@@ -119,7 +79,7 @@ def test_izb_at_16_samples_goes_below_the_edge_floor(path, name, evaluate):
     Catches all 16 samples at the pixel's centre (patterns.rotated giving zeros, tried: on
     box_plane edge_mae 0.0382 against a floor of 0.0379); ``surface: plane`` fails it on the
     real corpus (its acne at creases, izb.py's docstring)."""
-    scene = build_scene(name, config.load_scenes(path)[name], path).with_resolution(SIZE, SIZE)
+    scene = build_scene(name, config.load_scenes(path)[name], path).with_resolution(RES, RES)
     if scene.light.type == "point":
         return
     row = evaluate(scene, "izb", {"samples": 16}).row
