@@ -101,3 +101,33 @@ def test_the_cost_model_prices_the_counted_lists_and_tests(evaluate, scene_at):
     assert row["gpu_estimate_ms"] == pytest.approx(cost_model.estimate_ms(row))
     without = dict(row, traversal_nodes=0, triangle_tests=0)
     assert cost_model.estimate_ms(without) < row["gpu_estimate_ms"]
+
+
+def test_lists_past_the_loop_limit_are_counted_and_warned(scene_at, gl_context):
+    """terrain_long at 512 x 512 with a 16 x 16 grid: the light sees its far field's samples in
+    a few texels, lists of up to 131,722 samples, longer than the 65535 loop iterations
+    llvmpipe allows an invocation. Where no list is that long (res 512) izb(1) equals rt; at
+    res 16 the lists past the limit are counted and the run warns (their tails stay lit, so
+    V differs from rt's: the known limit, stated). Catches the limit passing silently (no
+    count, no warning: what a first version did, 3032 pixels lit wrongly)."""
+    from harness.technique import Frame, reset_gl_state
+
+    frame = Frame(scene_at("terrain_long", 512))
+    try:
+        rt, _ = technique_visibility(frame, "rt")
+        izb, extra = technique_visibility(frame, "izb")
+        compared = frame.compared_pixels(frame.arrays.covered)
+        assert extra["lists_over_limit"] == 0 and np.array_equal(izb[compared], rt[compared])
+        cls = registry.get("izb")
+        technique = cls(cls.Params(res=16))
+        try:
+            technique.prepare(frame)
+            frame.meter.new_frame(True)
+            out = technique.render(frame)
+        finally:
+            technique.release()
+            reset_gl_state()
+        assert out.extra["lists_over_limit"] >= 1 and out.extra["list_max"] > 65535
+        assert len(out.warnings) == 1 and "loop iterations" in out.warnings[0]
+    finally:
+        frame.release()
