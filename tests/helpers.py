@@ -498,3 +498,27 @@ def run_contract(cls, scene, **params):
     gone = leaked(before, live_gl_names())
     assert not gone, f"{cls.name} leaks GL objects on {scene.name}: {gone}"
     return outputs, passes
+
+
+def technique_visibility(frame: Frame, name: str, params: dict | None = None):
+    """V and the row extras of technique ``name`` on ``frame`` (one update, one render)."""
+    cls = registry.get(name)
+    technique = cls(cls.Params(**(params or {})))
+    try:
+        technique.prepare(frame)
+        technique.update(frame)
+        frame.meter.new_frame(True)
+        out = technique.render(frame)
+        return out.visibility, out.extra
+    finally:
+        technique.release()
+        reset_gl_state()
+
+
+def on_a_boundary(v: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """Whether each of ``pixels`` (a mask) has a 4-neighbour of the other value in ``v``."""
+    padded = np.pad(v, 1, mode="edge")
+    h, w = v.shape
+    neighbours = [padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+                  for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+    return pixels & np.any([n != v for n in neighbours], axis=0)

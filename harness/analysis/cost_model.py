@@ -16,9 +16,10 @@ and the work of techniques built on compute shaders (one invocation per triangle
 ray, per queued work item).
 A technique that traverses a hierarchy counts its work in an untimed repeat, per frame:
 ``traversal_nodes``, the nodes tested (a ray's BVH nodes entered, or the nodes of view samples
-a triangle's shadow volume was tested against), and ``triangle_tests``, the tests of one
-triangle at the leaves (against a ray, or its volume against a view sample); a row without
-them did none (0). A compute invocation tests several nodes in a loop, so the invocation term
+a triangle's shadow volume was tested against; an irregular z-buffer's samples linked into its
+lists, one atomic step each), and ``triangle_tests``, the tests of one triangle at the leaves
+(against a ray, or its volume or shadow frustum against a view sample: the same four planes);
+a row without them did none (0). A compute invocation tests several nodes in a loop, so the invocation term
 alone does not price them.
 
 All inputs are per frame and stored in each results row, so any estimate can be recomputed

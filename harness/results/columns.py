@@ -98,12 +98,13 @@ COLUMN_TABLE: tuple[Column, ...] = (
     Column("compute_invocations", float, "count", "compute shader invocations (the GPU "
            "reductions)", _COUNTERS),
     Column("traversal_nodes", float, "count", "nodes of a hierarchy a technique's traversal "
-           "tested in one frame (counted in an untimed repeat): BVH nodes its rays entered, or "
-           "nodes of view samples its shadow volumes were tested against",
+           "tested in one frame (counted in an untimed repeat): BVH nodes its rays entered, "
+           "nodes of view samples its shadow volumes were tested against, or view samples "
+           "linked into an irregular z-buffer's lists",
            "for a technique that traverses no hierarchy"),
     Column("triangle_tests", float, "count", "that traversal's tests of one triangle at the "
-           "leaves in one frame: against a ray, or (its shadow volume) against a view sample",
-           "as traversal_nodes"),
+           "leaves in one frame: against a ray, or (its shadow volume or frustum) against a "
+           "view sample", "as traversal_nodes"),
     Column("gpu_estimate_ms", float, "ms", "the counted work priced at an RTX 4090's peak rates "
            "(harness.analysis.cost_model: a lower bound)", _COUNTERS),
     Column("mae", float, "V (0..1)", f"mean |V - V_ref| {_COMPARED}", _ERROR),

@@ -20,14 +20,14 @@ from OpenGL import GL
 from harness.technique import NotApplicable
 from harness.truth import reference
 
-# rt_offset.glsl's rule, the same constants
+# common/ray_offset.glsl's rule, the same constants
 OFFSET_ULPS, ORIGIN, FLOAT_SCALE = 256, 1.0 / 32.0, 1.0 / 65536.0
 # cut-out hits one ray passes before the rest count as opaque
 MAX_CUTOUT_HITS = 64
 
 
 def offset_ray(p: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """``rt_offset.glsl``'s ``offset_ray`` on float32 arrays (..., 3): the same bits."""
+    """``common/ray_offset.glsl``'s ``offset_ray`` on float32 arrays (..., 3): the same bits."""
     p, n = np.asarray(p, np.float32), np.asarray(n, np.float32)
     step = (np.float32(OFFSET_ULPS) * n).astype(np.int32)  # truncates as GLSL's int()
     moved = (p.view(np.int32) + np.where(p < 0, -step, step)).view(np.float32)

@@ -46,7 +46,7 @@ class RayTraced(Technique):
     A pixel whose visible side faces away from the light gets V = 0 and no ray (it receives
     no light; such pixels are never compared). The origin of each ray is the G-buffer point
     moved off its surface along that normal, by 256 units in the last place of each
-    coordinate (Waechter and Binder 2019; ``rt_offset.glsl`` says why): the offset follows the
+    coordinate (Waechter and Binder 2019; ``common/ray_offset.glsl`` says why): the offset follows the
     position's own rounding, whatever the scene's scale. ``mask_res: half`` or ``quarter``
     traces one ray per 2x2 or 4x4 pixels and magnifies the 0/1 mask bilinearly, as sv's
     smaller masks. One-off work (the bottom levels, Mitsuba's scene) is the harness's

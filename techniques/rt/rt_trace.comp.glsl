@@ -25,7 +25,7 @@ uniform bool directional;
 uniform vec3 light;               // directional: unit vector towards the light; else position
 uniform vec3 camera_position;
 
-#include "rt_offset.glsl"
+#include "../common/ray_offset.glsl"
 #include "../common/receives_light.glsl"
 #include "rt_watertight.glsl"
 #ifdef ALPHA_TEST

@@ -10,10 +10,9 @@ import numpy as np
 import pytest
 
 from harness import config
-from harness.technique import registry
 from harness.scene import build_scene
-from harness.technique import Frame, reset_gl_state
-from helpers import ROOT
+from harness.technique import Frame
+from helpers import ROOT, on_a_boundary, technique_visibility
 
 HARD = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
 SIZE = 64
@@ -41,30 +40,6 @@ def scenes(path: Path) -> list[tuple[Path, str]]:
 ALL = scenes(ROOT / "scenes.yaml") + scenes(HARD)
 
 
-def visibility(frame: Frame, name: str, params: dict | None = None):
-    """V and the row extras of technique ``name`` on ``frame`` (one update, one render)."""
-    cls = registry.get(name)
-    technique = cls(cls.Params(**(params or {})))
-    try:
-        technique.prepare(frame)
-        technique.update(frame)
-        frame.meter.new_frame(True)
-        out = technique.render(frame)
-        return out.visibility, out.extra
-    finally:
-        technique.release()
-        reset_gl_state()
-
-
-def on_a_boundary(v: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """Whether each of ``pixels`` (a mask) has a 4-neighbour of the other value in ``v``."""
-    padded = np.pad(v, 1, mode="edge")
-    h, w = v.shape
-    neighbours = [padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
-                  for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1))]
-    return pixels & np.any([n != v for n in neighbours], axis=0)
-
-
 @pytest.fixture(scope="module")
 def frames(gl_context):
     made = {}
@@ -88,18 +63,18 @@ def test_rt_equals_sv_but_for_ties_on_shadow_edges(path, name, frames):
     for at most 0.5% of them, each on a shadow boundary of sv's V (a point whose ray grazes a
     silhouette: the two exact methods round differently there), and for sv's own errors
     (``SV_WRONG``, counted, where the embree backend's rays agree with rt's). Run against an origin offset
-    of 0 (OFFSET_ULPS 0 in rt_offset.glsl) it fails with self-shadowing acne over lit faces
+    of 0 (OFFSET_ULPS 0 in common/ray_offset.glsl) it fails with self-shadowing acne over lit faces
     (castle, crowd, pins ... thousands of pixels off any boundary); against the top level's
     leaves read as instance indices (levels.rebuild_top without ``top.order``) it loses whole
     casters on every scene with several parts."""
     frame = frame_of(frames, path, name)
-    sv, _ = visibility(frame, "sv")
-    rt, extra = visibility(frame, "rt")
+    sv, _ = technique_visibility(frame, "sv")
+    rt, extra = technique_visibility(frame, "rt")
     compared = frame.compared_pixels(frame.arrays.covered)
     differ = (sv != rt) & compared
     assert set(np.unique(rt)) <= {0.0, 1.0}
     if name in SV_WRONG:
-        embree, _ = visibility(frame, "rt", {"backend": "embree"})
+        embree, _ = technique_visibility(frame, "rt", {"backend": "embree"})
         assert differ.sum() == SV_WRONG[name]
         assert np.array_equal(embree[differ], rt[differ])
         return
@@ -120,9 +95,9 @@ def test_compute_traversal_equals_embree_but_for_ties(path, name, frames):
     work, never the answer). Fails against embree rays from the unshifted origins (the mask
     lands 1 scene unit away) and against a GL mask read upside down."""
     frame = frame_of(frames, path, name)
-    gl, _ = visibility(frame, "rt")
-    embree, _ = visibility(frame, "rt", {"backend": "embree"})
-    sah, _ = visibility(frame, "rt", {"build": "sah", "leaf_size": 1})
+    gl, _ = technique_visibility(frame, "rt")
+    embree, _ = technique_visibility(frame, "rt", {"backend": "embree"})
+    sah, _ = technique_visibility(frame, "rt", {"build": "sah", "leaf_size": 1})
     compared = frame.compared_pixels(frame.arrays.covered)
     differ = (gl != embree) & compared
     assert differ.sum() <= TIES * compared.sum() + 1, int(differ.sum())
@@ -141,8 +116,8 @@ def test_smaller_masks_trace_fewer_rays_and_differ_only_near_edges(mask_res, div
     from scipy import ndimage
 
     frame = frame_of(frames, ROOT / "scenes.yaml", "castle")
-    full, full_extra = visibility(frame, "rt")
-    low, low_extra = visibility(frame, "rt", {"mask_res": mask_res})
+    full, full_extra = technique_visibility(frame, "rt")
+    low, low_extra = technique_visibility(frame, "rt", {"mask_res": mask_res})
     ratio = low_extra["rays"] / full_extra["rays"]
     assert 0.7 / divisor ** 2 < ratio < 1.3 / divisor ** 2, ratio
     covered = frame.arrays.covered

@@ -1,0 +1,5 @@
+layout(location = 0) in vec3 position;
+out vec3 world;
+void main() {
+    world = position;
+}
