@@ -218,7 +218,6 @@ def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: i
     (Mitsuba's sensor still bakes in the film size), so Dr.Jit's kernel cache serves later
     scenes.
     """
-    import drjit as dr
 
     ray = _camera_ray(mi, mscene, scene, *film_position(mi, scene, x, y, s, samples, seed))
     if scene.has_alpha:  # the camera sees through cut-outs as the light does
