@@ -237,7 +237,7 @@ def _camera_hit(mi, mscene, scene: BuiltScene, ray):
     A ray stopped at the bound sees the last cut-out it passed (not counted in
     Reference.bounded_rays, which counts shadow rays)."""
     return cutout_ray_intersect(mi, mscene, scene, ray, True,
-                                lambda si, ray: si.spawn_ray(ray.d))
+                                lambda si, ray: si.spawn_ray(ray.d), coherent=True)
 
 
 def _toward_light(mi, scene: BuiltScene, si):
@@ -279,7 +279,8 @@ def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
     return there | bounded, bounded
 
 
-def cutout_ray_intersect(mi, mscene, scene: BuiltScene, ray, active, onward):
+def cutout_ray_intersect(mi, mscene, scene: BuiltScene, ray, active, onward,
+                         coherent: bool = False):
     """(si, there, bounded): ``ray``'s first hit where the surface is there under the scene's
     cut-outs, going on past each cut-out hit ``si`` along ``onward(si, ray)``; ``bounded``
     where it passed MAX_CUTOUT_HITS cut-outs (``si`` then the last of them). A bounded Dr.Jit
@@ -305,7 +306,7 @@ def cutout_ray_intersect(mi, mscene, scene: BuiltScene, ray, active, onward):
         return active
 
     def step(ray, active, si, there, passed):
-        found_si = mscene.ray_intersect(ray, flags, False, active)
+        found_si = mscene.ray_intersect(ray, flags, coherent, active)
         found = active & found_si.is_valid()
         si = dr.select(found, found_si, si)
         mask = mi.Int32(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si, found))
