@@ -10,7 +10,7 @@ OUT ?= results/bench
 EXPERIMENT ?= experiments/default.yaml
 export PYOPENGL_PLATFORM ?= osmesa
 
-.PHONY: setup plugin test bench report motion scale tune compare microbench microbench-compare reproduce lint clean
+.PHONY: setup plugin test bench report motion scale alpha tune compare microbench microbench-compare reproduce lint clean
 
 setup: $(STAMPS)/venv
 
@@ -84,6 +84,15 @@ SCALE_OUT ?= results/scale
 
 scale: setup
 	$(call timed_run,experiments/scale.yaml,$(SCALE_OUT),scale)
+
+# Alpha-tested casters (experiments/alpha.yaml, issue 48): every technique at its defaults on
+# cards (10^5, 10^6) and alpha_fence, with their cut-outs and with the same triangles opaque
+# -> $(ALPHA_OUT), then the table (benchmarks/alpha_table.py; docs/benchmarks.md).
+ALPHA_OUT ?= results/alpha
+
+alpha: setup
+	$(call timed_run,experiments/alpha.yaml,$(ALPHA_OUT),alpha)
+	$(PY) benchmarks/alpha_table.py $(ALPHA_OUT)/results.csv
 
 # Settings tuned per scene (docs/fairness.md): each technique's tunable settings searched
 # against the reference on $(TUNE_FLAGS)' scenes, point by point of its quality curve ->

@@ -378,6 +378,11 @@ CARD_HEIGHT, CARD_SIZE = 2.5, 2.0
 CARD_LIGHT = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2.0)
 CARD_POINT_LIGHT = np.array([12.5, 0.0, 12.5])
 CARD_GAP = 1e-3  # between copies of the card stacked along z
+CARD_CAMERA = {"position": [0, 0, 6], "target": [0, 0, 0], "up": [0, 1, 0], "yfov": 40,
+               "near": 0.1, "far": 100}
+# straight down over the card's centre: the card fills the middle of the view, the ground
+# around it and through its holes
+CARD_OVER_CAMERA = {**CARD_CAMERA, "position": [CARD_HEIGHT, 0, 6], "target": [CARD_HEIGHT, 0, 0]}
 
 
 def checker(texels: int, cells: int) -> np.ndarray:
@@ -396,22 +401,24 @@ def card_uv(points: np.ndarray) -> np.ndarray:
 
 
 def alpha_card_scene(texture: np.ndarray, cutoff: float = 0.5, size: int = 256,
-                     card_copies: int = 1, point_light: bool = False, motion: dict | None = None):
+                     card_copies: int = 1, point_light: bool = False, motion: dict | None = None,
+                     camera: dict = CARD_CAMERA, light: dict | None = None):
     """The card scene (above) at ``size`` x ``size``, the card cut out by ``texture``'s alpha
     at ``cutoff``, built in code (a BuiltScene: ground, then ``card_copies`` cards one above
     the other, CARD_GAP apart, sharing one cut-out), lit by CARD_LIGHT or CARD_POINT_LIGHT. Its key
     is the opaque scene's with the cut-out's digest (its own reference cache entry). ``motion``:
-    the scene's motion (the cards are objects ``card0``, ``card1``, ...)."""
+    the scene's motion (the cards are objects ``card0``, ``card1``, ...); ``camera``: another
+    camera (CARD_OVER_CAMERA sees the card); ``light``: another light."""
     import dataclasses
 
     from harness.scene.alpha import AlphaMask
 
     card = {"shape": "plane", "size": [CARD_SIZE, CARD_SIZE]}
     scene = {"resolution": [size, size],
-             "camera": {"position": [0, 0, 6], "target": [0, 0, 0], "up": [0, 1, 0],
-                        "yfov": 40, "near": 0.1, "far": 100},
-             "light": ({"type": "point", "position": CARD_POINT_LIGHT.tolist()} if point_light
-                       else {"type": "directional", "direction": CARD_LIGHT.tolist()}),
+             "camera": camera,
+             "light": light or ({"type": "point", "position": CARD_POINT_LIGHT.tolist()}
+                                if point_light else
+                                {"type": "directional", "direction": CARD_LIGHT.tolist()}),
              "effects": ["shadow"],
              "objects": [{"shape": "plane", "size": [10, 10]}] + [
                  {**card, "name": f"card{k}",

@@ -243,11 +243,13 @@ TriangleCount = Annotated[int, BeforeValidator(_triangle_count), Field(ge=1)]
 
 class Family(Strict):
     """Procedural geometry of about ``triangles`` triangles (harness/scene/families.py): at most that
-    many, and within 5% below. ``seed`` fixes its random layout."""
+    many, and within 5% below. ``seed`` fixes its random layout. ``cutouts: false`` draws a
+    family's alpha-tested parts (``cards``) opaque: the same triangles, for the comparison."""
 
     kind: Literal["tessellation", "instancing", "architecture", "foliage", "cards"]
     triangles: TriangleCount
     seed: int = Field(0, ge=0)
+    cutouts: bool = True
 
     @model_validator(mode="after")
     def _enough(self):

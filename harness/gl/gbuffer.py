@@ -1,7 +1,9 @@
 """The shared camera pass: world position, flat normal, albedo, depth and coverage per pixel.
 
 Textures: position (w = 1 where a surface is, else 0) and normal (w = albedo; undefined where
-no surface is: test coverage first, as ``gbuffer_fetch`` does)."""
+no surface is: test coverage first, as ``gbuffer_fetch`` does). In a scene with alpha-tested
+surfaces the pass cuts them out by the rule of ``glsl/alpha_test.glsl``: the camera sees what is
+behind a hole, as the light does."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from OpenGL import GL
 
+from .alpha import AlphaTextures
 from .framebuffer import Framebuffer
 from .shaders import HARNESS_GLSL, Program
 
@@ -25,10 +28,15 @@ class GBufferArrays:
 class GBuffer:
     """Renders the camera view once; techniques read it as textures, metrics as arrays."""
 
-    def __init__(self, width: int, height: int):
+    def __init__(self, width: int, height: int, alpha: AlphaTextures | None = None):
+        """``alpha``: the scene's cut-outs (None in an opaque scene: no alpha test, no extra
+        fetch). The geometry drawn then carries their texture coordinates (SceneMesh's
+        ``cutouts``)."""
         self.fbo = Framebuffer(width, height, (GL.GL_RGBA32F, GL.GL_RGBA32F), depth=True)
+        self.alpha = alpha
         self.program = Program(HARNESS_GLSL / "gbuffer.vert.glsl",
-                               HARNESS_GLSL / "gbuffer.frag.glsl")
+                               HARNESS_GLSL / "gbuffer.frag.glsl",
+                               None if alpha is None else {"ALPHA_TEST": 1})
 
     @property
     def position_texture(self):
@@ -52,6 +60,8 @@ class GBuffer:
         GL.glDisable(GL.GL_CULL_FACE)
         self.program.use().set(view_proj=view_proj,
                                face_attributes=geometry.bind_face_attributes(0))
+        if self.alpha is not None:
+            self.alpha.bind(self.program, 1)
         geometry.draw()
 
     def read(self) -> GBufferArrays:

@@ -365,7 +365,8 @@ def scene_key(scene: cfg.Scene, source: Path | None = None,
     ``description`` and the objects' names are labels and stay out, so rewording them keeps
     references and run ids. A still scene hashes as it did before scenes could move (no
     ``motion`` key), a moving one as before objects could (no ``motion.objects`` when none
-    move), a scene without a family as before families (no ``family`` key), an object without
+    move), a scene without a family as before families (no ``family`` key), a family with its
+    cut-outs as before they could be turned off (no ``cutouts`` key), an object without
     a cut-out as before objects could have one (no ``alpha`` key); an alpha texture's bytes
     are hashed like a mesh file's."""
     # an object without alpha hashes as before objects could have one
@@ -378,6 +379,8 @@ def scene_key(scene: cfg.Scene, source: Path | None = None,
         labels["motion"] = {"objects"}
     if scene.family is None:
         labels["family"] = True
+    elif scene.family.cutouts:  # a family with its cut-outs hashes as before they could go
+        labels["family"] = {"cutouts"}
     geometry = scene.model_dump(mode="json", exclude=labels)
     h = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode())
     for obj in scene.objects:

@@ -366,8 +366,9 @@ def alpha_mask(kind: str) -> AlphaMask | None:
 def build(family: cfg.Family
           ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
     """The family's parts as (name, vertices (V, 3) float32, faces (F, 3) int32, corners'
-    texture coordinates (F, 3, 2) float32 of a cut-out part, else None)."""
+    texture coordinates (F, 3, 2) float32 of a cut-out part, else None: every part without
+    them when the family's ``cutouts`` are off)."""
     rng = np.random.default_rng(family.seed)
-    texcoords = TEXCOORDS.get(family.kind, lambda name, faces: None)
+    texcoords = TEXCOORDS.get(family.kind if family.cutouts else None, lambda name, faces: None)
     return [(name, vertices.astype(np.float32), faces, texcoords(name, faces))
             for name, (vertices, faces) in KINDS[family.kind](family.triangles, rng)]

@@ -268,7 +268,7 @@ class Frame:
         self.geometry = self._scene_mesh()
         # the cut-outs' textures for alpha_test.glsl (bind_alpha), where the scene has any
         self.alpha = AlphaTextures(self.scene.alpha_masks) if self.scene.has_alpha else None
-        self.gbuffer = GBuffer(self.width, self.height)
+        self.gbuffer = GBuffer(self.width, self.height, self.alpha)
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
         self.share_scene_depth(self.visibility_target)  # for draw_fullscreen(covered_only=True)

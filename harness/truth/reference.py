@@ -218,17 +218,26 @@ def _trace_samples(mi, mscene, scene: BuiltScene, x, y, s, samples: int, seed: i
     (Mitsuba's sensor still bakes in the film size), so Dr.Jit's kernel cache serves later
     scenes.
     """
-    import drjit as dr
 
     ray = _camera_ray(mi, mscene, scene, *film_position(mi, scene, x, y, s, samples, seed))
+    if scene.has_alpha:  # the camera sees through cut-outs as the light does
+        si, there, seen_bounded = _camera_hit(mi, mscene, scene, ray)
+        hit = there | seen_bounded
+        occluded, bounded = cutout_ray_test(mi, mscene, scene, _toward_light(mi, scene, si), hit)
+        return hit, hit & occluded, hit & bounded
     # the shadow ray needs only the hit point and the face normal
     si = mscene.ray_intersect(ray, ray_flags=mi.RayFlags.Empty, coherent=True)
     hit = si.is_valid()
     shadow_ray = _toward_light(mi, scene, si)
-    if scene.has_alpha:
-        occluded, bounded = cutout_ray_test(mi, mscene, scene, shadow_ray, hit)
-        return hit, hit & occluded, hit & bounded
     return hit, hit & mscene.ray_test(shadow_ray, coherent=True, active=hit), False
+
+
+def _camera_hit(mi, mscene, scene: BuiltScene, ray):
+    """:func:`cutout_ray_intersect` of a camera ray: on along the ray past each cut-out hit.
+    A ray stopped at the bound sees the last cut-out it passed (not counted in
+    Reference.bounded_rays, which counts shadow rays)."""
+    return cutout_ray_intersect(mi, mscene, scene, ray, True,
+                                lambda si, ray: si.spawn_ray(ray.d), coherent=True)
 
 
 def _toward_light(mi, scene: BuiltScene, si):
@@ -251,52 +260,67 @@ def _jit(mi) -> bool:
 
 
 # Cut-outs (issue 48). Mitsuba's ray_test treats every surface as opaque; in a scene with
-# alpha-tested casters a shadow ray goes on past each hit where the sampling rule
-# (harness/scene/alpha.py) says the surface is cut out, and stops at the first hit where it
-# is there. At most MAX_CUTOUT_HITS cut-out hits are passed: a ray that passes that many is
-# counted as occluded (and counted: Reference.bounded_rays).
+# alpha-tested surfaces a shadow ray, a camera ray and a coverage ray go on past each hit
+# where the sampling rule (harness/scene/alpha.py) says the surface is cut out, and stop at
+# the first hit where it is there. At most MAX_CUTOUT_HITS cut-out hits are passed: a shadow
+# ray that passes that many is counted as occluded (and counted: Reference.bounded_rays), a
+# camera ray sees the last.
 CUTOUT_ATTRIBUTE = "face_cutout"
 MAX_CUTOUT_HITS = 64
-CUTOUT_VERSION = 1  # bump when the cut-out loop's definition changes (opaque scenes: no key)
+CUTOUT_VERSION = 2  # bump when the cut-out loop's definition changes (opaque scenes: no key);
+# 2: camera and coverage rays go on past cut-outs too
 
 
 def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
-    """(occluded, bounded): whether ``ray`` meets a surface that is there under the scene's
-    cut-outs, and whether it was stopped at the bound (occluded then too): a bounded Dr.Jit
-    loop of ray_intersect (``scalar_rgb``: a Python loop, the rule in NumPy)."""
+    """(occluded, bounded): whether the shadow ``ray`` meets a surface that is there under the
+    scene's cut-outs, and whether it was stopped at the bound (occluded then too)."""
+    _, there, bounded = cutout_ray_intersect(
+        mi, mscene, scene, ray, active, lambda si, _: _toward_light(mi, scene, si))
+    return there | bounded, bounded
+
+
+def cutout_ray_intersect(mi, mscene, scene: BuiltScene, ray, active, onward,
+                         coherent: bool = False):
+    """(si, there, bounded): ``ray``'s first hit where the surface is there under the scene's
+    cut-outs, going on past each cut-out hit ``si`` along ``onward(si, ray)``; ``bounded``
+    where it passed MAX_CUTOUT_HITS cut-outs (``si`` then the last of them). A bounded Dr.Jit
+    loop of ray_intersect (``scalar_rgb``: a Python loop, the rule in NumPy, ``si`` None for
+    an inactive ray). Shadow rays and camera rays alike."""
     import drjit as dr
 
     flags = mi.RayFlags.Minimal | mi.RayFlags.UV
     if not _jit(mi):
+        si = None
         for _ in range(MAX_CUTOUT_HITS if active else 0):
             si = mscene.ray_intersect(ray, flags, False)
             if not si.is_valid():
-                return False, False
+                return si, False, False
             mask = int(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si))
             if mask < 0 or scene.alpha_masks[mask].opaque(np.array([si.uv.x, si.uv.y])):
-                return True, False
-            ray = _toward_light(mi, scene, si)
-        return bool(active), bool(active)
+                return si, True, False
+            ray = onward(si, ray)
+        return si, False, bool(active)
     table = _cutout_table(mi, scene)
 
-    def going(ray, active, occluded, passed):
+    def going(ray, active, si, there, passed):
         return active
 
-    def step(ray, active, occluded, passed):
-        si = mscene.ray_intersect(ray, flags, False, active)
-        found = active & si.is_valid()
+    def step(ray, active, si, there, passed):
+        found_si = mscene.ray_intersect(ray, flags, coherent, active)
+        found = active & found_si.is_valid()
+        si = dr.select(found, found_si, si)
         mask = mi.Int32(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si, found))
         cut = found & (mask >= 0)
-        there = found & (~cut | _there(mi, table, mask, si.uv, cut))
-        passed = dr.select(cut & ~there, passed + 1, passed)
-        active = cut & ~there & (passed < MAX_CUTOUT_HITS)
-        return (_toward_light(mi, scene, si), active, occluded | there, passed)
+        is_there = found & (~cut | _there(mi, table, mask, si.uv, cut))
+        passed = dr.select(cut & ~is_there, passed + 1, passed)
+        active = cut & ~is_there & (passed < MAX_CUTOUT_HITS)
+        return (onward(si, ray), active, si, there | is_there, passed)
 
-    _, _, occluded, passed = dr.while_loop(
-        (ray, mi.Bool(active), dr.zeros(mi.Bool, dr.width(active)),
-         dr.zeros(mi.UInt32, dr.width(active))), going, step)
-    bounded = ~occluded & (passed >= MAX_CUTOUT_HITS)
-    return occluded | bounded, bounded
+    width = dr.width(active)
+    _, _, si, there, passed = dr.while_loop(
+        (ray, mi.Bool(active), dr.zeros(mi.SurfaceInteraction3f, width),
+         dr.zeros(mi.Bool, width), dr.zeros(mi.UInt32, width)), going, step)
+    return si, there, ~there & (passed >= MAX_CUTOUT_HITS)
 
 
 @dataclass
@@ -415,9 +439,13 @@ def _pcg_advance_table(samples: int) -> tuple[list[int], list[int]]:
 
 
 def _covered(mi, mscene, scene: BuiltScene, x, y):
-    """Whether the ray through the centre of pixel (x, y) hits geometry: GL's coverage rule."""
-    return mscene.ray_test(_camera_ray(mi, mscene, scene, mi.Float(x) + 0.5, mi.Float(y) + 0.5),
-                           coherent=True)
+    """Whether the ray through the centre of pixel (x, y) hits geometry (where it is there,
+    under the cut-outs): GL's coverage rule."""
+    ray = _camera_ray(mi, mscene, scene, mi.Float(x) + 0.5, mi.Float(y) + 0.5)
+    if scene.has_alpha:
+        _, there, bounded = _camera_hit(mi, mscene, scene, ray)
+        return there | bounded
+    return mscene.ray_test(ray, coherent=True)
 
 
 def _strip_pixels(mi, lane, width: int, height: int):

@@ -70,6 +70,18 @@ def test_cards_are_cut_out_quads_of_leaf_texture_coordinates(triangles):
                                corners[:, 0, 1] + corners[:, 1, 2], atol=1e-5)
 
 
+def test_cards_without_cutouts_are_the_same_triangles_opaque():
+    """``cutouts: false`` keeps every triangle and drops the cut-outs, under a key of its own;
+    ``cutouts: true`` is the default. Catches the key ignoring the switch (one reference for
+    both scenes) and a switch that drops the cut-out parts' triangles."""
+    family = {"kind": "cards", "triangles": 1000}
+    cut, opaque = (build_scene("c", _scene({**family, "cutouts": on})) for on in (True, False))
+    assert cut.has_alpha and not opaque.has_alpha
+    np.testing.assert_array_equal(cut.triangles, opaque.triangles)
+    assert cut.key != opaque.key
+    assert cut.key == build_scene("c", _scene(family)).key
+
+
 def _scene(family: dict, **extra) -> config.Scene:
     return config.Scene.model_validate({
         "resolution": [64, 64], "camera": CAMERA,

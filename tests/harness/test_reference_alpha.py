@@ -47,19 +47,26 @@ def exact_visibility(scene, fx: np.ndarray, fy: np.ndarray):
         edge = np.minimum(np.abs(np.abs(point[..., 0]) - sx), np.abs(np.abs(point[..., 1]) - sy))
         return point, inside, edge < EDGE
 
-    _, on_card, card_edge = on_plane(height, cx, cy)
+    seen, on_card, card_edge = on_plane(height, cx, cy)
     point, on_ground, ground_edge = on_plane(0.0, gx, gy)
     light = scene.light
     to_light = -light.direction if light.type == "directional" else light.position - point
     q = point + (height / to_light[..., 2])[..., None] * to_light  # its light ray at the card
     within = (np.abs(q[..., 0]) <= cx) & (np.abs(q[..., 1]) <= cy)
     border = np.minimum(np.abs(np.abs(q[..., 0]) - cx), np.abs(np.abs(q[..., 1]) - cy)) < EDGE
-    uv = np.stack([q[..., 0] / (2 * cx) + 0.5, 0.5 - q[..., 1] / (2 * cy)], -1)  # PLANE_UV
     w, h = card.alpha.size
-    alpha = sample_alpha(pattern_texture(card.alpha.pattern, w, h), uv)
-    shadowed = on_ground & ~on_card & within & (alpha >= card.alpha.cutoff)
-    tie = card_edge | ((ground_edge | border) & ~on_card) | (
-        on_ground & ~on_card & within & (np.abs(alpha - card.alpha.cutoff) < TIE))
+    texture, cutoff = pattern_texture(card.alpha.pattern, w, h), card.alpha.cutoff
+
+    def alpha_at(p):  # PLANE_UV
+        return sample_alpha(texture, np.stack([p[..., 0] / (2 * cx) + 0.5,
+                                               0.5 - p[..., 1] / (2 * cy)], -1))
+
+    alpha, seen_alpha = alpha_at(q), alpha_at(seen)
+    seen_tie = on_card & (np.abs(seen_alpha - cutoff) < TIE)
+    on_card = on_card & (seen_alpha >= cutoff)  # the camera sees the ground through the holes
+    shadowed = on_ground & ~on_card & within & (alpha >= cutoff)
+    tie = card_edge | seen_tie | ((ground_edge | border) & ~on_card) | (
+        on_ground & ~on_card & within & (np.abs(alpha - cutoff) < TIE))
     return np.where(shadowed, 0.0, 1.0), tie
 
 
