@@ -69,6 +69,21 @@ def test_vsm_cuts_out_in_its_page_rendering(card_frames):
     assert agreement("vsm", card_frames[False], False) >= 0.98
 
 
+@pytest.mark.parametrize("cache", [True, False])
+def test_vsm_counts_its_page_draws_alpha_texels(gl_context, cache):
+    """vsm's fetches_per_px adds four texels per alpha test of the frame's page draws, per
+    covered pixel: the first frame draws the card's pages (a whole number of tests, more than
+    none); the second, the scene still, draws no page with the cache on (back to the one
+    read per pixel) and the same pages again with it off (the same count). Catches the count
+    left out of fetches_per_px, or counted when no page was drawn (a cached frame)."""
+    cls = registry.get("vsm")
+    outputs, _ = run_contract(cls, alpha_card_scene(CHECKER, size=48), cache=cache)
+    covered = 48 * 48  # the camera sees ground only
+    tests = [(out.fetches_per_px - 1) * covered / 4 for out in outputs]
+    assert tests[0] > 0 and tests[0] == pytest.approx(round(tests[0]), abs=1e-6)
+    assert tests[1] == pytest.approx(0 if cache else tests[0], abs=1e-6)
+
+
 def test_izb_tests_the_texture_where_the_ray_meets_the_caster(card_frames):
     """izb at one sample tests each sample in the card's frustum at the point its ray to the
     light meets the card (the barycentric weights of that point, the corners' texture
