@@ -61,7 +61,10 @@ void main() {
     }
 #ifdef COUNT
     atomicAdd(fragments, 1u);
-    uint tested = 0u, alpha_tested = 0u;
+    uint tested = 0u;
+#endif
+#if defined(COUNT) && defined(ALPHA_TEST)
+    uint alpha_tested = 0u;
 #endif
 #ifdef TEXEL_FRAGMENTS
     imageAtomicAdd(texel_fragments, texel, 1u);
@@ -90,6 +93,8 @@ void main() {
     }
 #ifdef COUNT
     atomicAdd(tests, tested);
+#endif
+#if defined(COUNT) && defined(ALPHA_TEST)
     atomicAdd(alpha_tests, alpha_tested);
 #endif
 }
