@@ -4,24 +4,8 @@
 // COUNT_ALPHA_TESTS too, each alpha test is counted (light_maps.py, untimed).
 in float light_depth;
 layout(location = 0) out float out_depth;
-#ifdef ALPHA_TEST
-#include "alpha_test.glsl"
-in vec2 uv;
-flat in int mask;
-#endif
-#ifdef COUNT_ALPHA_TESTS
-layout(binding = 0, offset = 0) uniform atomic_uint alpha_tests;
-#endif
+#include "cut_out_texel.glsl"
 void main() {
-#ifdef ALPHA_TEST
-#ifdef COUNT_ALPHA_TESTS
-    if (mask >= 0) {
-        atomicCounterIncrement(alpha_tests);
-    }
-#endif
-    if (cut_out(mask, uv)) {
-        discard;
-    }
-#endif
+    discard_cut_out();
     out_depth = light_depth;
 }

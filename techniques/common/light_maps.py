@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Callable, Literal
 
 import numpy as np
 from OpenGL import GL
@@ -49,6 +49,25 @@ BIAS_MODE_TUNING = {"bias_mode": ("choice", tuple(BIAS_MODES))}
 EMPTY_DEPTH = 3.0e38
 
 
+def count_alpha_tests(draw: Callable[[], None]) -> int:
+    """The alpha tests ``draw`` runs with a program built with COUNT_ALPHA_TESTS
+    (cut_out_texel.glsl): an atomic counter at binding 0, zeroed before, read after."""
+    counter = GL.glGenBuffers(1)
+    try:
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+        GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 4, np.zeros(1, np.uint32),
+                        GL.GL_DYNAMIC_READ)
+        GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, counter)
+        draw()
+        GL.glMemoryBarrier(GL.GL_ATOMIC_COUNTER_BARRIER_BIT)
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
+        return int(np.frombuffer(GL.glGetBufferSubData(GL.GL_ATOMIC_COUNTER_BUFFER, 0, 4),
+                                 np.uint32)[0])
+    finally:
+        GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
+        GL.glDeleteBuffers(1, [counter])
+
+
 class _DepthMapResources:
     """What every light depth map holds: its framebuffer, the program drawing linear depth, and
     the light frusta it is drawn with (``frusta``). On a scene with alpha-tested casters the
@@ -83,23 +102,16 @@ class _DepthMapResources:
                                              "light_depth.frag.glsl", ALPHA_TEST=1,
                                              COUNT_ALPHA_TESTS=1)
         drawing, scratch = self.program, frame.new_meter()
-        counter = GL.glGenBuffers(1)
-        try:
-            self.program = self.counting
-            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
-            GL.glBufferData(GL.GL_ATOMIC_COUNTER_BUFFER, 4, np.zeros(1, np.uint32),
-                            GL.GL_DYNAMIC_READ)
-            GL.glBindBufferBase(GL.GL_ATOMIC_COUNTER_BUFFER, 0, counter)
+
+        def draw() -> None:
             scratch.new_frame(measuring=False)  # its passes are timed nowhere
             with frame.metered(scratch):
                 self.render(frame)
-            GL.glMemoryBarrier(GL.GL_ATOMIC_COUNTER_BARRIER_BIT)
-            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, counter)
-            tests = int(np.frombuffer(GL.glGetBufferSubData(GL.GL_ATOMIC_COUNTER_BUFFER, 0, 4),
-                                      np.uint32)[0])
+
+        try:
+            self.program = self.counting
+            tests = count_alpha_tests(draw)
         finally:
-            GL.glBindBuffer(GL.GL_ATOMIC_COUNTER_BUFFER, 0)
-            GL.glDeleteBuffers(1, [counter])
             self.program = drawing
             scratch.release()
         self.counted = (key, tests)

@@ -74,8 +74,9 @@ def list_statistics(lengths: np.ndarray) -> dict:
 
 
 def caster_program(defines: dict) -> Program:
-    """The conservative caster raster with its sample tests (``defines``: SAMPLES, and COUNT
-    or TEXEL_FRAGMENTS for the counting ones)."""
+    """The conservative caster raster with its sample tests (``defines``: SAMPLES, ALPHA_TEST
+    on a scene with alpha-tested casters, and COUNT or TEXEL_FRAGMENTS for the counting
+    ones)."""
     return Program(HERE / "izb_casters.vert.glsl", HERE / "izb_casters.frag.glsl", defines,
                    geometry=HERE / "izb_casters.geom.glsl")
 
@@ -117,8 +118,16 @@ class IrregularZBuffer(Technique):
     **Visibility**: V = the fraction of a pixel's samples left lit. One sample: exact 0/1 as
     rt's; 16 or 32 estimate the pixel-area average the reference computes.
 
-    Point lights are declined (one grid covers one frustum). Alpha-tested casters are not
-    treated yet. llvmpipe ends an invocation's loops after 65535 iterations in all, so a
+    **Cut-outs** (``alpha_casters``): on a scene with alpha-tested casters, a sample in a
+    caster's frustum is tested once more where its ray to the light meets the triangle (the
+    barycentric weights of that point, from the frustum's edge determinants, interpolate the
+    corners' texture coordinates) by ``alpha_test.glsl``'s rule: a cut-out texel does not
+    shadow it. Those alpha tests are counted (``alpha_tests``) and add four texels each to
+    ``fetches_per_px``. Scenes without cut-outs build the caster shader without the test.
+    ``surface: raster``'s camera passes are the harness's G-buffer pass, so its samples see
+    the surfaces the frame's G-buffer sees.
+
+    Point lights are declined (one grid covers one frustum). llvmpipe ends an invocation's loops after 65535 iterations in all, so a
     fragment tests at most that many samples of its list: where the light sees many samples in
     one texel (terrain_long's far field: 185,299 at 512 x 512 with 16 samples and res 512) the
     tail is left lit; such lists are counted (``lists_over_limit``) and the run warns. List
@@ -158,6 +167,7 @@ class IrregularZBuffer(Technique):
     quality_knobs = {"samples": (1, 4, 16)}
     declines_lights = {"point": "one grid covers one light frustum (six faces are not built)"}
     rivals = ("rt", "sv")  # the exact rays and volumes
+    alpha_casters = True  # a sample behind a cut-out texel of a caster stays lit
 
     class Params(TechniqueParams):
         samples: Literal[SAMPLE_COUNTS] = 1
@@ -210,7 +220,7 @@ class IrregularZBuffer(Technique):
         if p.surface == "raster":
             defines["RASTER_SURFACE"] = 1
             self.missed = StorageBuffer(4 * frame.width * frame.height)
-            self.jittered = GBuffer(frame.width, frame.height)
+            self.jittered = GBuffer(frame.width, frame.height, frame.alpha)
         if p.pattern == "reference":
             defines["REFERENCE_PATTERN"] = 1
             self.offsets = StorageBuffer(OFFSET_BYTES * self.slots)
@@ -221,7 +231,8 @@ class IrregularZBuffer(Technique):
         self.samples_program = ComputeProgram(HERE / "izb_samples.comp.glsl", defines)
         self.list_programs = [ComputeProgram(HERE / "izb_lists.comp.glsl", {**defines, **more})
                               for more in ({}, {"COUNT": 1})]
-        self.caster_programs = [caster_program({**defines, **more})
+        cutouts = {"ALPHA_TEST": 1} if frame.scene.has_alpha else {}
+        self.caster_programs = [caster_program({**defines, **cutouts, **more})
                                 for more in ({}, {"COUNT": 1})]
         self.visibility_program = Technique.shader(__file__, "fullscreen.vert.glsl",
                                                    "izb_visibility.frag.glsl", **defines)
@@ -294,6 +305,7 @@ class IrregularZBuffer(Technique):
         GL.glActiveTexture(GL.GL_TEXTURE0)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.heads.id)
         program.use().set(heads=0, **grid)
+        frame.bind_alpha(program, 1)
         frame.draw_scene()
         GL.glMemoryBarrier(GL.GL_SHADER_STORAGE_BARRIER_BIT)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
@@ -315,21 +327,22 @@ class IrregularZBuffer(Technique):
                               frame.part_poses))
         if key == self.counted[0]:
             return dict(self.counted[1])
-        lengths, totals = IntegerImage(self.params.res), StorageBuffer(8)
+        lengths, totals = IntegerImage(self.params.res), StorageBuffer(12)
         try:
             lengths.fill(0)
             lengths.bind(1)
             self._lists(self.list_programs[1], grid)
-            totals.write(np.zeros(2, np.uint32))
+            totals.write(np.zeros(3, np.uint32))
             totals.bind(5)
             self._casters(frame, self.caster_programs[1], grid)
-            fragments, tests = (int(v) for v in totals.read(np.uint32, 2))
+            fragments, tests, alpha_tests = (int(v) for v in totals.read(np.uint32, 3))
             per_texel = lengths.read()
         finally:
             for resource in (lengths, totals):
                 resource.release()
         counted = {**list_statistics(per_texel), "samples_inserted": int(per_texel.sum()),
                    "caster_fragments": fragments, "sample_tests": tests,
+                   **({"alpha_tests": alpha_tests} if frame.scene.has_alpha else {}),
                    # the cost model's counted work (harness.analysis.cost_model): a sample
                    # linked is one step of the structure, a sample tested one triangle test
                    "traversal_nodes": int(per_texel.sum()), "triangle_tests": tests}
@@ -352,7 +365,10 @@ class IrregularZBuffer(Technique):
             warnings.append(f"izb: {extra['lists_over_limit']} lists longer than llvmpipe's "
                             f"{LOOP_LIMIT} loop iterations (the longest {extra['list_max']}): "
                             f"their tails were not tested, lit; a larger res shortens them")
-        return frame.output(mem_bytes=self.mem_bytes, fetches_per_px=1, extra=extra,
+        # the mask's read, and each alpha test's four texels (alpha_test.glsl) per pixel
+        covered = int(np.count_nonzero(frame.arrays.covered))
+        fetches = 1 + 4 * extra.get("alpha_tests", 0) / max(covered, 1)
+        return frame.output(mem_bytes=self.mem_bytes, fetches_per_px=fetches, extra=extra,
                             warnings=warnings)
 
     @property

@@ -5,18 +5,26 @@
 // MARGIN along its normal's L1 norm, holds no corner of the texel): with the quad's box this
 // is the separating-axis test of the texel square against the triangle. A triangle nearly
 // edge-on to the light (its projection's area within rounding of 0) keeps its box alone.
-// With COUNT, fragments and sample tests are counted; with TEXEL_FRAGMENTS, fragments per
-// texel.
+// With ALPHA_TEST (a scene with alpha-tested casters), an occluded sample is tested once more
+// at the point where its ray to the light meets the triangle (frustum_weights), by
+// alpha_test.glsl's rule at the texture coordinates there: a cut-out texel does not shadow it.
+// With COUNT, fragments, sample tests and alpha tests are counted; with TEXEL_FRAGMENTS,
+// fragments per texel.
 flat in vec3 a, b, c;
 flat in vec2 ga, gb, gc;
 flat in int edge_test;
+#ifdef ALPHA_TEST
+#include "alpha_test.glsl"
+flat in vec2 ta, tb, tc;
+flat in int mask;
+#endif
 
 layout(std430, binding = 0) readonly buffer Positions { vec4 positions[]; };
 layout(std430, binding = 1) readonly buffer Next { uint next[]; };
 layout(std430, binding = 2) buffer Masks { uint masks[]; };
 uniform usampler2D heads;
 #ifdef COUNT
-layout(std430, binding = 5) buffer Counts { uint fragments; uint tests; };
+layout(std430, binding = 5) buffer Counts { uint fragments; uint tests; uint alpha_tests; };
 #endif
 #ifdef TEXEL_FRAGMENTS
 layout(r32ui, binding = 1) uniform uimage2D texel_fragments;  // a test's: fragments per texel
@@ -55,6 +63,9 @@ void main() {
     atomicAdd(fragments, 1u);
     uint tested = 0u;
 #endif
+#if defined(COUNT) && defined(ALPHA_TEST)
+    uint alpha_tested = 0u;
+#endif
 #ifdef TEXEL_FRAGMENTS
     imageAtomicAdd(texel_fragments, texel, 1u);
 #endif
@@ -63,11 +74,27 @@ void main() {
 #ifdef COUNT
         tested++;
 #endif
-        if (in_shadow_frustum(positions[slot].xyz, a, b, c, light)) {
-            atomicOr(masks[slot / uint(SAMPLES)], 1u << (slot % uint(SAMPLES)));
+        vec3 s = positions[slot].xyz;
+        if (!in_shadow_frustum(s, a, b, c, light)) {
+            continue;
         }
+#ifdef ALPHA_TEST
+        if (mask >= 0) {
+#ifdef COUNT
+            alpha_tested++;
+#endif
+            vec3 weights = frustum_weights(s, a, b, c, light);
+            if (cut_out(mask, weights.x * ta + weights.y * tb + weights.z * tc)) {
+                continue;
+            }
+        }
+#endif
+        atomicOr(masks[slot / uint(SAMPLES)], 1u << (slot % uint(SAMPLES)));
     }
 #ifdef COUNT
     atomicAdd(tests, tested);
+#endif
+#if defined(COUNT) && defined(ALPHA_TEST)
+    atomicAdd(alpha_tests, alpha_tested);
 #endif
 }

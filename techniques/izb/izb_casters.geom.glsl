@@ -4,7 +4,8 @@
 // izb_casters.frag.glsl then drops the texels the triangle does not touch (its three edges as
 // separating axes). A triangle crossing a spot light's near plane is clipped to it first
 // (points nearer than it are not gridded and cannot be shadowed through the rest); its box
-// is then the clipped polygon's and the edge test is skipped (conservative).
+// is then the clipped polygon's and the edge test is skipped (conservative). With ALPHA_TEST
+// the corners' texture coordinates and the cut-out go with the triangle.
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 
@@ -12,6 +13,11 @@ in vec3 world[];
 flat out vec3 a, b, c;        // the triangle, world space (the exact test)
 flat out vec2 ga, gb, gc;     // the triangle in grid texels
 flat out int edge_test;       // 0: the box alone decides
+#ifdef ALPHA_TEST
+in vec3 corner_cutout[];
+flat out vec2 ta, tb, tc;     // the corners' texture coordinates
+flat out int mask;            // the cut-out's index, -1: opaque
+#endif
 
 #include "izb_grid.glsl"
 
@@ -60,6 +66,12 @@ void main() {
     gb = (clip[1].xy / clip[1].w - low) * scale;
     gc = (clip[2].xy / clip[2].w - low) * scale;
     edge_test = kept == 3 ? 1 : 0;
+#ifdef ALPHA_TEST
+    ta = corner_cutout[0].xy;
+    tb = corner_cutout[1].xy;
+    tc = corner_cutout[2].xy;
+    mask = int(corner_cutout[0].z);
+#endif
     vec2 to_ndc = 2.0 / vec2(float(grid_res));
     vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);
     for (int i = 0; i < 4; ++i) {

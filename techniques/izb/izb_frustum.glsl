@@ -46,3 +46,13 @@ bool in_shadow_frustum(vec3 s, vec3 a, vec3 b, vec3 c, vec4 light) {
     float light_side = safe_sign(b, a, c, a, light.xyz, a * light.w);
     return behind * light_side < 0.0;
 }
+
+// Where the ray from `s` towards the light meets the triangle's plane, as the weights of a, b
+// and c (barycentrics, summing to 1): each corner's weight is the edge determinant of the
+// opposite edge (G_bc for a), so the weights of a sample in the frustum are all >= 0. Their
+// sum is det(b - a, c - a, w), not 0 there: in_shadow_frustum has found w off the plane.
+vec3 frustum_weights(vec3 s, vec3 a, vec3 b, vec3 c, vec4 light) {
+    vec3 w = light.xyz - s * light.w;
+    vec3 g = vec3(det3(b - s, c - s, w), det3(c - s, a - s, w), det3(a - s, b - s, w));
+    return g / (g.x + g.y + g.z);
+}

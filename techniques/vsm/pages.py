@@ -13,6 +13,7 @@ from OpenGL import GL
 
 from harness.gl.shaders import ComputeProgram, Program
 from harness.technique import Frame
+from techniques.common.light_maps import count_alpha_tests
 
 from .levels import Levels
 
@@ -123,10 +124,12 @@ def barrier() -> None:
 class PagePool:
     """The page table for ``table_size`` entries, a pool of ``pool_pages`` tiles of ``page``
     texels, the scene's ``faces`` (indices into its vertex buffer, in :func:`spatial_order`)
-    cut into clusters, and the passes over them."""
+    cut into clusters, and the passes over them. With ``cutouts`` (a scene with alpha-tested
+    casters: ``faces`` index the scene mesh's cut-out corners) the page draws discard cut-out
+    texels."""
 
     def __init__(self, pool_pages: int, page: int, table_size: int, level_count: int,
-                 faces: np.ndarray):
+                 faces: np.ndarray, cutouts: bool = False):
         self.pool_pages, self.page, self.table_size = pool_pages, page, table_size
         self.tiles = pool_tiles(pool_pages)
         self.pool_res = self.tiles * page
@@ -166,7 +169,10 @@ class PagePool:
         self.cull = ComputeProgram(HERE / "vsm_cull.comp.glsl")
         self.clear_tiles = Program(HERE / "vsm_clear.vert.glsl", HERE / "vsm_page.frag.glsl")
         self.cluster_bounds = ComputeProgram(HERE / "vsm_bounds.comp.glsl")
-        self.draw = Program(HERE / "vsm_page.vert.glsl", HERE / "vsm_page.frag.glsl")
+        self.cutouts = {"ALPHA_TEST": 1} if cutouts else {}
+        self.draw = Program(HERE / "vsm_page.vert.glsl", HERE / "vsm_page.frag.glsl",
+                            self.cutouts)
+        self.counting = None  # the page draws counting their alpha tests, made when needed
         self.empty_vao = GL.glGenVertexArrays(1)
         self.reset()
 
@@ -252,6 +258,11 @@ class PagePool:
             GL.glBindBuffer(GL.GL_ARRAY_BUFFER, frame.geometry.vbo)
             GL.glEnableVertexAttribArray(0)
             GL.glVertexAttribPointer(0, 3, GL.GL_FLOAT, GL.GL_FALSE, 12, ctypes.c_void_p(0))
+            if self.cutouts:  # each corner's (u, v, mask), as the scene mesh draws it
+                GL.glBindBuffer(GL.GL_ARRAY_BUFFER, frame.geometry.cutout_vbo)
+                GL.glEnableVertexAttribArray(1)
+                GL.glVertexAttribPointer(1, 3, GL.GL_FLOAT, GL.GL_FALSE, 12,
+                                         ctypes.c_void_p(0))
             GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.indices.id)
             GL.glBindVertexArray(0)
             GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
@@ -265,7 +276,7 @@ class PagePool:
         GL.glDispatchCompute(-(-self.clusters // 64), 1, 1)
         barrier()
 
-    def render_jobs(self, jobs: int, level_uniforms: dict) -> int:
+    def render_jobs(self, frame: Frame, jobs: int, level_uniforms: dict) -> int:
         """Empty the jobs' tiles, cull the clusters per job, draw them into the tiles; the
         number of cluster draws."""
         if jobs == 0:
@@ -277,6 +288,26 @@ class PagePool:
         GL.glDispatchCompute(-(-self.clusters // 64), jobs, 1)
         barrier()
         draws = min(int(self.counts()[COMMANDS]), self.capacity)
+        self._draw_jobs(frame, self.draw, jobs, draws, level_uniforms)
+        return draws
+
+    def alpha_tests(self, frame: Frame, jobs: int, draws: int, level_uniforms: dict) -> int:
+        """The alpha tests of the last :meth:`render_jobs` (its ``jobs`` and ``draws``),
+        counted by drawing the same tiles again with a counting program (the same depths):
+        untimed, as the shared depth pass counts its own. 0 without cut-outs."""
+        if not self.cutouts or draws == 0:
+            return 0
+        if self.counting is None:
+            self.counting = Program(HERE / "vsm_page.vert.glsl", HERE / "vsm_page.frag.glsl",
+                                    {**self.cutouts, "COUNT_ALPHA_TESTS": 1})
+        self.bind()  # the jobs and levels the page draws read
+        return count_alpha_tests(
+            lambda: self._draw_jobs(frame, self.counting, jobs, draws, level_uniforms))
+
+    def _draw_jobs(self, frame: Frame, program: Program, jobs: int, draws: int,
+                   level_uniforms: dict) -> None:
+        """Empty the jobs' tiles and draw the culled clusters (``draws`` commands) into them
+        with ``program``."""
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
         GL.glViewport(0, 0, self.pool_res, self.pool_res)
         GL.glDisable(GL.GL_CULL_FACE)
@@ -290,8 +321,9 @@ class PagePool:
         GL.glDepthFunc(GL.GL_LESS)
         for plane in range(4):
             GL.glEnable(GL.GL_CLIP_DISTANCE0 + plane)
-        self.draw.use().set(pool_tiles=self.tiles, pool_res=float(self.pool_res),
-                            **level_uniforms)
+        program.use().set(pool_tiles=self.tiles, pool_res=float(self.pool_res),
+                          **level_uniforms)
+        frame.bind_alpha(program, 0)
         GL.glBindVertexArray(self.vao)
         GL.glBindBuffer(GL.GL_DRAW_INDIRECT_BUFFER, self.commands.id)
         GL.glMultiDrawElementsIndirect(GL.GL_TRIANGLES, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0),
@@ -302,7 +334,6 @@ class PagePool:
             GL.glDisable(GL.GL_CLIP_DISTANCE0 + plane)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
         barrier()
-        return draws
 
     def table(self) -> np.ndarray:
         """The entries (table_size, 4) int32: slot, global x, y, valid (tests, diagnostics)."""
@@ -316,8 +347,9 @@ class PagePool:
                        self.jobs, self.bounds, self.commands, self.indices):
             buffer.release()
         for program in (*self.programs.values(), self.cull, self.clear_tiles,
-                        self.cluster_bounds, self.draw):
-            program.release()
+                        self.cluster_bounds, self.draw, self.counting):
+            if program is not None:
+                program.release()
         GL.glDeleteTextures([self.pool])
         GL.glDeleteVertexArrays(2, [self.empty_vao, self.vao])
         GL.glDeleteFramebuffers(1, [self.fbo])

@@ -12,6 +12,7 @@ from OpenGL import GL
 from pydantic import Field, field_validator
 from pydantic_core.core_schema import ValidationInfo
 
+from harness.gl.geometry import cut_out_corners
 from harness.gl.shaders import ComputeProgram
 from harness.scene.transforms import box_corners
 from harness.technique import Frame, ShadowOutput, Technique, TechniqueParams
@@ -68,6 +69,12 @@ class VirtualShadowMap(Technique):
     where geometry moved. A moving camera over a still scene renders only newly requested
     pages. With ``cache: false`` every requested page is rendered every frame.
 
+    Cut-outs (``alpha_casters``): on a scene with alpha-tested casters the page draws discard
+    the cut-out texels by ``alpha_test.glsl``'s rule (``common/cut_out_texel.glsl``, the shared
+    depth pass's), so a cut-out texel writes no depth. ``fetches_per_px`` adds four alpha
+    texels per alpha test of this frame's page draws (counted in an untimed repeat of them),
+    per covered pixel: a frame whose pages all came from the cache adds none.
+
     Columns: ``pages_marked``, ``pages_allocated`` (new tiles this frame), ``pages_rendered``,
     ``cache_hits``, ``pages_coarsened`` (levels), ``page_draws`` (cluster draws),
     ``pages_invalidated``; ``mem_bytes`` is the pool and the page table.
@@ -108,6 +115,7 @@ class VirtualShadowMap(Technique):
     tunable = {**BIAS_TUNING, **BIAS_MODE_TUNING}
     bias_terms = BIAS_TERMS
     rivals = ("csm",)
+    alpha_casters = True  # the page draws discard cut-out texels, as the shared depth pass
     declines_lights = {
         "point": "a point light needs six virtual maps (cube faces) with their mips; vsm builds "
                  "a directional light's clipmap and a spot light's mips only"}
@@ -151,9 +159,13 @@ class VirtualShadowMap(Technique):
         self.bounds = sequence_bounds(frame.sequence)
         self.top = top_frustum(frame.scene.light, self.bounds)
         levels = self.chain(frame)
-        vertices, faces = frame.scene.indexed
+        scene = frame.scene
+        vertices, faces = scene.indexed
+        if scene.has_alpha:  # the scene mesh's faces: cut-out corners have their own vertices
+            vertices, faces, _ = cut_out_corners(vertices, faces, scene.face_mask,
+                                                 scene.face_texcoords)
         self.pages = PagePool(p.pool_pages, p.page, levels.table_size, levels.count,
-                              spatial_order(vertices, faces))
+                              spatial_order(vertices, faces), scene.has_alpha)
         self.mark = ComputeProgram(HERE / "vsm_mark.comp.glsl")
         defines = {"PCF": 1} if p.filter == "pcf" else {}
         self.shading = self.shader(__file__, "fullscreen.vert.glsl", "vsm_shading.frag.glsl",
@@ -257,7 +269,7 @@ class VirtualShadowMap(Technique):
                 self.pages.invalidate(uniforms, True, [])
             c = self.pages.allocate(uniforms)
         with frame.measure("page_render"):
-            draws = self.pages.render_jobs(int(c[JOBS]), uniforms)
+            draws = self.pages.render_jobs(frame, int(c[JOBS]), uniforms)
         with frame.measure("shading"):
             frame.begin_visibility()
             self.shading.use()
@@ -278,9 +290,12 @@ class VirtualShadowMap(Technique):
         self.levels = levels
         nonfinite = int(sum(np.count_nonzero(~np.isfinite(m)) for m in (levels.views,
                                                                         levels.projs)))
-        return frame.output(mem_bytes=self.pages.mem_bytes,
-                            fetches_per_px=9 if p.filter == "pcf" else 1, nonfinite=nonfinite,
-                            extra=self.columns(frame))
+        # the page draws' alpha tests, four texels each, per pixel (untimed repeat)
+        alpha_tests = self.pages.alpha_tests(frame, int(c[JOBS]), draws, uniforms)
+        covered = int(np.count_nonzero(frame.arrays.covered))
+        fetches = (9 if p.filter == "pcf" else 1) + 4 * alpha_tests / max(covered, 1)
+        return frame.output(mem_bytes=self.pages.mem_bytes, fetches_per_px=fetches,
+                            nonfinite=nonfinite, extra=self.columns(frame))
 
     def level_map(self, frame: Frame) -> np.ndarray:
         """The level each covered pixel reads (levels.choose_levels, the shader's choice in

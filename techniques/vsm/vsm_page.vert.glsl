@@ -1,7 +1,8 @@
 // A cluster drawn for one job: the scene's vertex in the job's level, its page's square
 // mapped onto the job's pool tile, everything outside the square clipped (gl_ClipDistance),
 // so texel centres are tested as a full map of the level would test them; the depth is the
-// level's own window depth.
+// level's own window depth. With ALPHA_TEST the vertex's texture coordinates and cut-out go
+// on to vsm_page.frag.glsl.
 #extension GL_ARB_shader_draw_parameters : require
 layout(location = 0) in vec3 position;
 #include "vsm_levels.glsl"
@@ -10,6 +11,11 @@ layout(std430, binding = 5) readonly buffer Jobs { ivec4 jobs[]; };
 uniform int pool_tiles;
 uniform float pool_res;  // texels per side of the pool
 out gl_PerVertex { vec4 gl_Position; float gl_ClipDistance[4]; };
+#ifdef ALPHA_TEST
+layout(location = 1) in vec3 cutout;  // u, v, the cut-out's index (-1: opaque)
+out vec2 uv;
+flat out int mask;
+#endif
 
 void main() {
     ivec4 job = jobs[gl_BaseInstanceARB];
@@ -24,4 +30,8 @@ void main() {
     float tile_size = 2.0 * float(page_size) / pool_res;
     vec2 tile_low = -1.0 + vec2(job.w % pool_tiles, job.w / pool_tiles) * tile_size;
     gl_Position = vec4(from_low * (tile_size / size) + tile_low * clip.w, clip.z, clip.w);
+#ifdef ALPHA_TEST
+    uv = cutout.xy;
+    mask = int(cutout.z);
+#endif
 }
