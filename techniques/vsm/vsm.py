@@ -105,7 +105,7 @@ class VirtualShadowMap(Technique):
     """
 
     name = "vsm"
-    colour = "#17becf"
+    colour = "#1b9e77"
     summary = "virtual shadow maps: pages marked by the view, a physical pool, cached pages"
     paper = ("Epic Games, Virtual Shadow Maps (Unreal Engine 5); Sakmary, Ryan, Hall, Lustri "
              "2024, Virtual shadow maps, GPU Zen 3; Lefohn, Sengupta, Owens 2007, "

@@ -25,8 +25,8 @@ KNOBS = [(name, knob) for name, cls in registry.techniques().items()
 
 def test_every_map_technique_has_its_length_knobs():
     techniques = {name for name, _ in KNOBS}
-    assert {"sm", "pcf", "csm", "mdsm", "silhouette", "psm", "lispsm", "gmnpr"} <= techniques
-    assert sum(knob == "normal_offset" for _, knob in KNOBS) == 8
+    assert {"sm", "pcf", "csm", "mdsm", "silhouette", "psm", "lispsm", "gmnpr", "vsm"} <= techniques
+    assert sum(knob == "normal_offset" for _, knob in KNOBS) == 9
 
 
 @pytest.mark.parametrize("technique, knob", KNOBS)
