@@ -310,6 +310,14 @@ def canonical_triangles(triangles: np.ndarray) -> np.ndarray:
     return rows[np.lexsort(rows.T[::-1])]
 
 
+def cut_out(scene) -> bool:
+    """A scene whose casters are alpha-tested (issue 48): an object's ``alpha`` key, or the
+    ``cards`` family with its cut-outs. sv, ptsv and silhouette build their shadows from whole
+    triangles and decline it by default; they are compared with the others on opaque scenes."""
+    return any(obj.alpha is not None for obj in scene.objects) or (
+        scene.family is not None and scene.family.kind == "cards" and scene.family.cutouts)
+
+
 def real_corpus(scene) -> bool:
     """A scene built from a mesh file shipped inside an installed package (issue 32's corpus,
     10^4 to 10^5 triangles of real exporters' geometry)."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import ROOT, real_corpus, rendered
+from helpers import ROOT, cut_out, real_corpus, rendered
 
 from harness import config
 
@@ -43,8 +43,10 @@ scenes:
 SCENES = [(path, name) for path in SCENE_FILES
           for name, scene in config.load_scenes(path).items()
           # silhouette declines points; on the real corpus's real_plates (thin stacked plates) the
-          # GPU's map and the NumPy oracle's V differ by up to 0.30, not yet explained
-          if scene.family is None and scene.light.type != "point" and not real_corpus(scene)]
+          # GPU's map and the NumPy oracle's V differ by up to 0.30, not yet explained; it declines
+          # the alpha-tested scenes (test_alpha_casters.py)
+          if scene.family is None and scene.light.type != "point" and not real_corpus(scene)
+          and not cut_out(scene)]
 SCENES.append((None, NEAR_PLANE_SCENE))
 MAP_RES = 1024  # the technique's default
 IMAGE_PX = 96
