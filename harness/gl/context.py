@@ -1,4 +1,5 @@
-"""One GL context per process, on pyrender's OSMesa or EGL platform."""
+"""One GL context per process, on pyrender's OSMesa or EGL platform (a sweep makes it anew
+between scenes' groups, :meth:`GLContext.renew`, once no GL object is alive)."""
 
 from __future__ import annotations
 

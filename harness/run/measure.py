@@ -40,6 +40,11 @@ from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one
 BATCH_BYTES = 256 * 2**20
 BATCH_RUNS = 16
 BATCH_RESIDENT = int(1.5 * 2**30)
+# A batch whose first run is expected to pass through this much starts on a GL context made
+# anew (``Frame.renew_context``): llvmpipe keeps what its draws of a large scene allocated
+# until its context goes (0.3 GiB after silhouette's three runs of instancing@1e6), and such a
+# run should not find the batches before it there.
+RENEW_BYTES = 256 * 2**20
 # What a technique never seen in this process is assumed to pass through at its start, per
 # triangle of the scene: about sv's at 10^6 (2.1 GiB on instancing@1e6), the most of any
 # technique shipped. At 10^3 that is 2.4 MiB: only a large scene makes such a run wait.
@@ -222,6 +227,17 @@ def _return_batch_memory() -> None:
     trim_heap()
 
 
+def _renew_context(frame) -> bool:
+    """The frame on a GL context made anew, where this process has one and nothing but the
+    frame lives in it, then the heap trimmed; whether it was."""
+    from ..gl import context
+
+    renewed = context.current() is not None and frame.renew_context(context.current())
+    if renewed:
+        trim_heap()
+    return renewed
+
+
 class Footprints:
     """What each technique's runs passed through as they started (prepare, static setup,
     warm-up): the peak resident memory over what the process held just before, the most any
@@ -229,8 +245,9 @@ class Footprints:
     triangles. :meth:`predict` gives a run's from its technique's on the same scene; else the
     most of what it took on other scenes of as many triangles and of what its smaller scenes
     give, grown with the triangles (along the line through the two largest sizes, the most
-    of any scene at each: a map's bytes stay, an edge buffer's grow; with one size, in
-    proportion); else UNSEEN_BYTES_PER_TRIANGLE for each triangle."""
+    of any scene at each: a map's bytes stay, an edge buffer's grow; from one size, by
+    UNSEEN_BYTES_PER_TRIANGLE for each triangle more); else UNSEEN_BYTES_PER_TRIANGLE for
+    each triangle."""
 
     def __init__(self):
         self.seen: dict[str, dict[tuple, tuple[int, int]]] = {}
@@ -249,8 +266,8 @@ class Footprints:
                 by_size[size] = max(by_size.get(size, 0), peak)
         guesses = [by_size.pop(triangles)] if triangles in by_size else []
         sizes = sorted(by_size)
-        if len(sizes) == 1:
-            guesses.append(round(by_size[sizes[0]] * triangles / max(sizes[0], 1)))
+        if len(sizes) == 1:  # what it took there, the more triangles as an unseen one's
+            guesses.append(by_size[sizes[0]] + UNSEEN_BYTES_PER_TRIANGLE * (triangles - sizes[0]))
         elif sizes:
             (small, low), (large, high) = [(size, by_size[size]) for size in sizes[-2:]]
             guesses.append(round(high + max(high - low, 0) / (large - small)
@@ -269,14 +286,18 @@ def _batches(specs: list[RunSpec], start, frame):
     :class:`Footprints` peak, would take the resident memory more than BATCH_RESIDENT over
     where the batch began (a first run starts whatever it takes); yields (the runs that could
     not start, the batch). The runs start in the order of that peak, the largest first (in
-    the plan's among equals). Once the consumer is done with a batch, what its runs freed
-    goes back to the system before the next one starts."""
+    the plan's among equals). Before the first batch, and once the consumer is done with
+    each, what was freed goes back to the system; a batch whose first run is expected to pass
+    through RENEW_BYTES or more starts on a GL context made anew."""
     scene = (frame.scene.key, frame.width, frame.height)
     triangles = sum(len(part.faces) for part in frame.scene.parts)
     # the runs that pass through the most first, while the group holds the least (each batch
     # leaves some of the driver's memory behind: llvmpipe keeps what its draws allocated)
     queue = sorted(specs, key=lambda spec: -FOOTPRINTS.predict(spec.technique, scene, triangles))
+    _return_batch_memory()  # what the frame's set-up and the counts passed through (0.16 GiB)
     while queue:
+        if FOOTPRINTS.predict(queue[0].technique, scene, triangles) >= RENEW_BYTES:
+            _renew_context(frame)
         failed, batch, batch_bytes, began = [], [], 0, resident_bytes()
         while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
             before = resident_bytes()

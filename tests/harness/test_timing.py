@@ -250,14 +250,15 @@ def test_batches_leave_room_for_what_a_start_passes_through(logged, tmp_path, sm
 def test_footprints_grow_with_the_triangles_from_smaller_scenes():
     """A technique's start on a scene it ran on: the most it took there; on another: the most
     of what scenes of as many triangles took and of the line through its two largest smaller
-    scenes (a map's bytes stay, an edge buffer's grow), or in proportion to the one; never
-    seen: UNSEEN_BYTES_PER_TRIANGLE a triangle."""
+    scenes (a map's bytes stay, an edge buffer's grow), or from the one, as a technique never
+    seen for the triangles more; never seen: UNSEEN_BYTES_PER_TRIANGLE a triangle."""
     from harness.run.measure import UNSEEN_BYTES_PER_TRIANGLE, Footprints
 
     f = Footprints()
     assert f.predict("sv", ("a", 512, 512), 10**6) == UNSEEN_BYTES_PER_TRIANGLE * 10**6
     f.observe("sv", ("t4", 512, 512), 10**4, 30 * 2**20)
-    assert f.predict("sv", ("t5", 512, 512), 10**5) == 300 * 2**20  # in proportion
+    # from one size: what it took there, and as an unseen technique for the triangles more
+    assert f.predict("sv", ("t5", 512, 512), 10**5) == 30 * 2**20 + UNSEEN_BYTES_PER_TRIANGLE * 90_000
     f.observe("sv", ("t5", 512, 512), 10**5, 210 * 2**20)
     f.observe("sv", ("t5", 512, 512), 10**5, 200 * 2**20)  # another setting: the most stays
     assert f.predict("sv", ("t5", 512, 512), 10**5) == 210 * 2**20

@@ -118,3 +118,63 @@ def _no_warnings_of_leaks(recwarn):
     yield
     leaks = [str(w.message) for w in recwarn if "GL objects left alive" in str(w.message)]
     assert leaks == []
+
+
+def test_a_context_made_anew_between_batches_changes_no_result(tmp_path, monkeypatch, gl_context):
+    """Every batch of one run on a GL context made anew (``RENEW_BYTES`` 0, ``BATCH_RUNS`` 1:
+    the frame's objects made again, its G-buffer drawn again) against the same runs in one
+    batch on one context: every row's numbers but the times and the V of every run equal.
+    Catches a renewal that loses state the runs rely on (a G-buffer not drawn again: V all
+    lit)."""
+    import numpy as np
+
+    from harness import results, run
+    from harness.run import measure
+
+    experiment = tmp_path / "e.yaml"
+    experiment.write_text(yaml.safe_dump({
+        "scenes": ["box_plane"], "resolutions": [[48, 48]], "frames": 1, "warmup": 1,
+        "reference": {"samples": 1}, "techniques": TECHNIQUES}))
+    renewals = []
+    frame_renew = measure._renew_context
+
+    def counting(frame):
+        renewals.append(frame_renew(frame))
+        return renewals[-1]
+
+    outputs = {}
+    for name, renew_bytes, batch_runs in (("one", 2**62, 16), ("renewed", 0, 1)):
+        monkeypatch.setattr(measure, "RENEW_BYTES", renew_bytes)
+        monkeypatch.setattr(measure, "BATCH_RUNS", batch_runs)
+        monkeypatch.setattr(measure, "_renew_context", counting)
+        plan = run.plan_runs(experiment_path=str(experiment), scene_file=str(SCENE_FILE),
+                             scenes=None, techniques=None, overrides={})
+        out = tmp_path / name
+        list(run.render_serial(plan, plan.runs, out, gl_context, _Quiet()))
+        outputs[name] = out
+    assert renewals == [True] * 6  # one a batch, in the second sweep only
+    timing = {"time_ms", "time_ms_min", "time_ms_max", "time_ms_ci_low", "time_ms_ci_high",
+              "frame_ms", "prepare_ms", "setup_ms", "setup_ms_ci_low", "setup_ms_ci_high",
+              "cpu_contention", "noisy", "scene_ms", "ref_seconds", "ref_build_seconds",
+              "finished_at", "passes", "gpu_estimate_ms"}
+    one, renewed = (sorted(results.read_rows(outputs[n]), key=lambda r: r["run_id"])
+                    for n in ("one", "renewed"))
+    assert [r["run_id"] for r in one] == [r["run_id"] for r in renewed]
+    for a, b in zip(one, renewed):
+        assert {k: v for k, v in a.items() if k not in timing} == \
+            {k: v for k, v in b.items() if k not in timing}, a["technique"]
+        v_a = np.load(outputs["one"] / a["array"])["visibility"]
+        v_b = np.load(outputs["renewed"] / b["array"])["visibility"]
+        assert np.array_equal(v_a, v_b), a["technique"]
+        assert v_a.min() < 1  # shadows drawn: the G-buffer was there
+
+
+class _Quiet:
+    def stage(self, text):
+        pass
+
+    def status(self, text):
+        pass
+
+    def frame_done(self, specs):
+        pass
