@@ -8,7 +8,9 @@ this process), printing for each scene's group the process's resident memory as 
 G-buffer, its interleaved rounds) sampled every 20 ms by a thread, and the whole process's
 peak so far (the kernel's high-water mark, what ``/usr/bin/time -v`` reports as maximum
 resident set size); at the end the whole process's peak and the same as a Markdown table
-(``--table FILE`` writes it there too). Memory that a finished group leaves behind shows as
+(``--table FILE`` writes it there too), and per technique and scene the most one run's start
+(prepare, warm-up) took over what the process held, what the sweep sizes its batches by.
+Memory that a finished group leaves behind shows as
 growth from one line to the next. Issue 34: four families at 10^6 triangles, sm and
 silhouette at 256 x 256, grew to 1.24 GiB between groups (peak 1.74 GiB) before the sweep
 returned freed heap pages after each group, 0.74 GiB (peak 1.55) after. Issue 53: the 10^6
@@ -96,6 +98,23 @@ class _Lines:
         return "\n".join(lines)
 
 
+def _starts_table(plan) -> str:
+    """Per technique and group, the most one run's start (prepare, setup, warm-up) took the
+    process over what it held just before (harness.run.measure.FOOTPRINTS, what the batches
+    are sized by), as Markdown."""
+    from harness.run.measure import FOOTPRINTS
+
+    groups = {(spec.scene_key, spec.width, spec.height): spec.scene for spec in plan.runs}
+    order = list(dict.fromkeys(scene for seen in FOOTPRINTS.seen.values() for scene in seen))
+    order.sort(key=lambda scene: list(groups).index(scene) if scene in groups else len(groups))
+    lines = ["| technique | " + " | ".join(groups.get(s, s[0]) for s in order) + " |",
+             "|---|" + "---|" * len(order)]
+    for technique, seen in sorted(FOOTPRINTS.seen.items()):
+        cells = [f"{seen[s][1] / MIB:.0f}" if s in seen else "" for s in order]
+        lines.append(f"| {technique} | " + " | ".join(cells) + " |")
+    return "the most a run's start took over what the process held (MiB):\n\n" + "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("experiment")
@@ -113,7 +132,7 @@ def main() -> None:
     lines.close_phase()
     peak = peak_resident_bytes() / MIB
     table = (f"{lines.table()}\n\nwhole process: peak {peak:.0f} MiB ({peak / 1024:.2f} GiB), "
-             f"{resident_bytes() / MIB:.0f} MiB resident at the end")
+             f"{resident_bytes() / MIB:.0f} MiB resident at the end\n\n{_starts_table(plan)}")
     print(f"end: {resident_bytes() / MIB:.0f} MiB resident, whole-process peak {peak:.0f} MiB, "
           f"{failed} runs not ok; results in {out}\n\n{table}")
     if args.table:
