@@ -26,14 +26,15 @@ $(STAMPS)/debs:
 
 # The distribution is hard-shadow-bench (`shadowbench` on PyPI is another project). A .venv made
 # before the project took that name holds it as `shadowbench`: uninstalled first (only when its
-# entry points are this project's techniques), or every technique would be registered twice.
+# entry points are this project's techniques, with the egg-info its editable install left in the
+# checkout), or every technique would be registered twice.
 $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 	@test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	@if $(PY) -c "import importlib.metadata as m, sys; \
 	  sys.exit(not any(e.value.startswith('techniques.') for e in \
 	  m.distribution('shadowbench').entry_points.select(group='shadowbench.techniques')))" \
-	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; fi
+	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; rm -rf shadowbench.egg-info; fi
 	$(PY) -m pip install -q -e '.[dev]'
 	@touch $@
 
@@ -45,9 +46,12 @@ plugin: setup
 	$(VENV)/bin/shadowbench list | grep -i -A1 "plugin:" || true
 
 # benchmarks run once each as plain tests here (their timings are make microbench's job)
+# Two worker processes, a test module's tests in one of them (its module fixtures built once):
+# most tests run one core at a time (Python, pandas, one GL pass), so the two cores halve it.
+TEST_WORKERS ?= 2
 test: setup
 	$(VENV)/bin/lint-imports
-	$(PY) -m pytest -q --benchmark-disable
+	$(PY) -m pytest -q --benchmark-disable -n $(TEST_WORKERS) --dist loadfile
 
 # Some failed runs (exit 1) still get their dashboard, which shows why; bad input (2) does not.
 bench: setup

@@ -20,7 +20,7 @@ from .common import (
 
 PAPER = "Reeves, Salesin, Cook 1987 (PCF)"
 
-BASE = dict(res=512, k=16, res_factor=1.0, bias_min=0.042, bias_max=0.056)
+BASE = dict(res=512, k=16, res_factor=1.0, min_size=1.0, bias_min=0.042, bias_max=0.056)
 COST_PCT = (40.0, 50.0)  # Table 1: "an image with shadows costs 40% to 50% more"
 COST_FACTOR = 2.0
 

@@ -71,17 +71,30 @@ def _installed_file(dists: list, path: PurePosixPath) -> Path | None:
     one that ends with it; a FileNotFoundError naming them when several end with it."""
     exact, tails = [], []
     for dist in dists:
+        site = _site_of(dist)
         for entry in dist.files or ():
             parts = PurePosixPath(entry).parts
             while parts and parts[0] == "..":
                 parts = parts[1:]
             if parts == path.parts:
-                exact.append(Path(dist.locate_file(entry)).resolve())
+                exact.append((site / str(entry)).resolve())
             elif parts[-len(path.parts):] == path.parts:
-                tails.append((PurePosixPath(*parts), Path(dist.locate_file(entry)).resolve()))
+                tails.append((PurePosixPath(*parts), (site / str(entry)).resolve()))
     if exact:
         return exact[0]
     if len(tails) > 1:
         raise FileNotFoundError(f"{len(tails)} installed files end with {path}: "
                                 f"{', '.join(str(p) for p, _ in tails[:3])}; give the whole path")
     return tails[0][1] if tails else None
+
+
+def _site_of(dist) -> Path:
+    """The folder the distribution's RECORD paths are relative to: its dist-info's parent, with
+    links resolved. A dist-info reached through a link from another folder (a layer of links
+    to site-packages entries) still finds its data files at ../../share/..., beside the real
+    site-packages, not beside the link."""
+    for entry in dist.files or ():
+        parts = PurePosixPath(entry).parts
+        if len(parts) == 2 and parts[0].endswith(".dist-info") and parts[1] == "RECORD":
+            return Path(dist.locate_file(entry)).resolve().parent.parent
+    return Path(dist.locate_file(""))

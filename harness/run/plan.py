@@ -195,6 +195,11 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     registry.baseline()  # two declared baselines: one line naming both, before anything else
     broken = registry.broken()
     if not experiment_path:
+        if not registered:
+            raise cfg.ConfigError(
+                f"no technique to run: all {len(broken)} registered are broken (shadowbench list "
+                f"says why); the first: {next(iter(broken.values()))}" if broken else
+                "no technique is registered: install the project (make setup)")
         exp = cfg.Experiment(techniques={name: default_grids(cls) if default_grids else cfg.Grid()
                                          for name, cls in registered.items()})
         node, exp_path, exp_text = None, Path("(command line)"), ""

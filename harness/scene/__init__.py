@@ -19,19 +19,24 @@ from .. import config as cfg
 from . import families
 from . import motion as motion_paths
 from . import topology
+from .alpha import AlphaMask
 from ..machine.interrupt import raise_if_interrupted
 
 
 @dataclass(frozen=True)
 class MeshPart:
     """One object copy: merged vertices and faces (for adjacency), its albedo, and the index
-    of its object in the scene's ``objects`` (what an object motion moves)."""
+    of its object in the scene's ``objects`` (what an object motion moves). An alpha-tested
+    part has ``alpha`` and its texture coordinates per face corner (per corner, so merging
+    vertices for adjacency never merges two sides of a texture seam)."""
 
     name: str
     vertices: np.ndarray  # (V, 3) float32
     faces: np.ndarray  # (F, 3) int32
     albedo: float
     object_index: int = 0
+    texcoords: np.ndarray | None = None  # (F, 3, 2) float32, glTF's convention (alpha.py)
+    alpha: AlphaMask | None = None
 
 
 @dataclass(frozen=True)
@@ -120,6 +125,34 @@ class BuiltScene:
         )
 
     @cached_property
+    def alpha_masks(self) -> tuple[AlphaMask, ...]:
+        """The distinct cut-outs of the scene's parts, in part order (one object's copies
+        share theirs)."""
+        masks = {id(p.alpha): p.alpha for p in self.parts if p.alpha is not None}
+        return tuple(masks.values())
+
+    @property
+    def has_alpha(self) -> bool:
+        """Whether any caster is alpha-tested."""
+        return bool(self.alpha_masks)
+
+    @cached_property
+    def face_mask(self) -> np.ndarray:
+        """Per triangle of :attr:`triangles`, its cut-out's index in :attr:`alpha_masks`, or
+        -1 where it is opaque: (T,) int32."""
+        index = {id(m): i for i, m in enumerate(self.alpha_masks)}
+        return np.concatenate([np.full(len(p.faces), index.get(id(p.alpha), -1), np.int32)
+                               for p in self.parts])
+
+    @cached_property
+    def face_texcoords(self) -> np.ndarray:
+        """Per triangle of :attr:`triangles`, its corners' texture coordinates (T, 3, 2)
+        float32; zeros on opaque parts."""
+        return np.concatenate([
+            p.texcoords.astype(np.float32) if p.alpha is not None
+            else np.zeros((len(p.faces), 3, 2), np.float32) for p in self.parts])
+
+    @cached_property
     def bounds(self) -> np.ndarray:
         """Axis-aligned bounds of all geometry, (2, 3) float64: min row, max row."""
         v = self.triangles.reshape(-1, 3)
@@ -202,7 +235,8 @@ class BuiltScene:
 
 
 # BuiltScene's cached properties that depend only on the geometry
-_GEOMETRY = ("triangles", "indexed", "face_normals", "face_albedo", "bounds", "edges")
+_GEOMETRY = ("triangles", "indexed", "face_normals", "face_albedo", "bounds", "edges",
+             "alpha_masks", "face_mask", "face_texcoords")
 
 
 def _transform(obj: cfg.Placed) -> np.ndarray:

@@ -22,7 +22,10 @@ class PercentageCloserFiltering(Technique):
     the shaded point (the paper's Figure 4), so V takes at most k + 1 values.
 
     Sample region (``region: footprint``, the paper's section 3.2 and Figure 4): the pixel's
-    footprint in the map, times ``res_factor``, each side at least ``min_size`` texels. The
+    footprint in the map, times ``res_factor``, each side at least ``min_size`` texels (by
+    default half the footprint's bounding box, at least a quarter texel: the filter
+    antialiases the pixel, it does not blur the map; the paper's MinSize of one texel blurred
+    edges past sm's where a texel covers pixels, and read across creases). The
     footprint is the bounding box in the map of the pixel's square on its receiver plane (the
     plane through the G-buffer position with its normal, cut by the camera rays through the
     pixel's sides), so neighbouring pixels on other surfaces do not widen it; a pixel seeing its
@@ -56,9 +59,9 @@ class PercentageCloserFiltering(Technique):
     ``k``              samples per pixel (NumSamples), a square         16         1 .. 64
     ``sampling``       ``grid`` or ``jitter`` (stratified)              grid
     ``region``         ``footprint`` (pixel footprint) or ``fixed``     footprint
-    ``res_factor``     footprint: times the footprint (ResFactor);      1.0        (0, 64]
+    ``res_factor``     footprint: times the footprint (ResFactor);      0.5        (0, 64]
                        fixed: sub-region side, texels
-    ``min_size``       footprint: smallest region side, texels          1.0        (0, 64]
+    ``min_size``       footprint: smallest region side, texels          0.25       (0, 64]
                        (MinSize)
     ``bias_min``       smallest per-sample bias, scene units (Bias0)    0.02       0 .. 1e7
     ``bias_max``       largest per-sample bias, scene units (Bias1)     0.04       bias_min .. 1e7
@@ -93,7 +96,7 @@ class PercentageCloserFiltering(Technique):
                "slope_bias": BIAS_TUNING["slope_bias"],
                "normal_offset": BIAS_TUNING["normal_offset"], **BIAS_MODE_TUNING,
                "region": ("choice", ("footprint", "fixed")),
-               "res_factor": ("log", 0.25, 4.0), "min_size": ("log", 0.5, 4.0)}
+               "res_factor": ("log", 0.125, 4.0), "min_size": ("log", 0.125, 4.0)}
     bias_terms = ("bias_min", "bias_max", "slope_bias", "normal_offset")
     declines_lights = {}  # a point light gets a cube map: six faces
 
@@ -102,8 +105,12 @@ class PercentageCloserFiltering(Technique):
         k: SquareInt = Field(16, le=64)
         sampling: Literal["grid", "jitter"] = "grid"
         region: Literal["footprint", "fixed"] = "footprint"
-        res_factor: float = Field(1.0, gt=0, le=64)
-        min_size: float = Field(1.0, gt=0, le=64)
+        # half the footprint's bounding box, at least a quarter texel (were 1 and 1 texel):
+        # the box of a slanted footprint is wider than the footprint, and a region of one
+        # texel where a texel covers several pixels blurs the edge past a pixel and reads
+        # the next face of a crease (docs/techniques.md, "pcf's region")
+        res_factor: float = Field(0.5, gt=0, le=64)
+        min_size: float = Field(0.25, gt=0, le=64)
         bias_min: float = Field(0.02, ge=0, le=MAX_BIAS)
         bias_max: float = Field(0.04, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)

@@ -77,7 +77,7 @@ def test_two_declared_baselines_are_one_line_at_list_and_run(plugin_env, smbias_
     folder of sm and smbias) and the check left out of list (exit 0)."""
     _, out, _ = smbias_run
     env = plugin_env(PLUGINS / "smbias", PLUGINS / "smbase")
-    message = ("shadowbench: techniques sm (distribution shadowbench), smbase (distribution "
+    message = ("shadowbench: techniques sm (distribution hard-shadow-bench), smbase (distribution "
                "shadowbench-smbase) each declare baseline = True in their class; one baseline at "
                "most: remove the line from all but one, or uninstall one of the distributions")
     listed = shadowbench(env, tmp_path, "list", "--scene-file", SCENES)

@@ -148,8 +148,8 @@ def test_mdsm_window_depths_take_the_nearest_corner(tmp_path, evaluate):
     scene = scene_of(tmp_path, "tilted", [{"shape": "plane", "size": [16, 16],
                                            "rotate": [TILT, 0, 0]}],
                      {"type": "directional", "direction": [0.95, 0.25, -0.3]})
-    for params in ({"extra": "min"}, {"n": 3}):
-        assert acne(evaluate, scene, "mdsm", {**params, "bias_mode": "adaptive"}) == 0.0
+    for params in ({"extra": "min"}, {"n": 3}):  # the 3 x 3 window, as measured (q 9)
+        assert acne(evaluate, scene, "mdsm", {**params, "q": 9, "bias_mode": "adaptive"}) == 0.0
 
 
 # -- creased receivers ------------------------------------------------------------------------
@@ -185,22 +185,28 @@ def test_pcf_on_creases_convex_and_concave(creases, evaluate):
     without its constant: on the roof ridge (a convex crease: the other face lies below the
     plane, so no read finds it nearer) all three modes leave 0 % acne; on the stairs each
     riser's foot is a concave crease, where reads of the tread in front of it (above the
-    riser's plane) find it nearer than the plane: adaptive 4.43 % acne, receiver_plane without
-    its constant 4.44 % (3.70 % with its [0.02, 0.04]), the slope bound 2.44 %. The
-    limitation of Dou et al.'s method (and of the receiver plane), not a defect of the
-    implementation: it is why slope stays the default (docs/techniques.md). Broken versions
-    caught: the texel centre off by half a texel, the normal ignored, the epsilon's sign
-    flipped, the constant still added under adaptive (less acne than receiver_plane
-    without it)."""
+    riser's plane) find it nearer than the plane. With the region of res_factor 1 and min_size
+    1 texel (the defaults before issue 46) adaptive leaves 4.43 % acne, receiver_plane without
+    its constant 4.44 % (3.70 % with its [0.02, 0.04]), the slope bound 2.44 %; with the
+    default region (half the footprint, at least a quarter texel) the slope bound leaves none
+    (0 %: no read reaches across the crease far enough to beat the bound), adaptive 2.91 %,
+    receiver_plane without its constant 2.92 %. The limitation of Dou et al.'s method (and of
+    the receiver plane), not a defect of the implementation: it is why slope stays the default
+    (docs/techniques.md). Broken versions caught: the texel centre off by half a texel, the
+    normal ignored, the epsilon's sign flipped, the constant still added under adaptive (less
+    acne than receiver_plane without it); the default region back at res_factor 1 and min_size
+    1 (slope 2.44 %)."""
     roof, stairs = creases["roof"], creases["stairs"]
     for mode in ("slope", "receiver_plane", "adaptive"):
         assert acne(evaluate, roof, "pcf", {"k": 16, "bias_mode": mode}) == 0.0, mode
-    slope = acne(evaluate, stairs, "pcf", {"k": 16})
-    plane = acne(evaluate, stairs, "pcf", {"k": 16, "bias_mode": "receiver_plane",
-                                           "bias_min": 0.0, "bias_max": 0.0})
-    adaptive = acne(evaluate, stairs, "pcf", {"k": 16, "bias_mode": "adaptive"})
-    assert 1.0 < slope < adaptive
-    assert adaptive == pytest.approx(plane, abs=0.05)
+    for region in ({}, {"res_factor": 1.0, "min_size": 1.0}):
+        slope = acne(evaluate, stairs, "pcf", {"k": 16, **region})
+        plane = acne(evaluate, stairs, "pcf", {"k": 16, "bias_mode": "receiver_plane",
+                                               "bias_min": 0.0, "bias_max": 0.0, **region})
+        adaptive = acne(evaluate, stairs, "pcf", {"k": 16, "bias_mode": "adaptive", **region})
+        assert (slope == 0.0) if not region else (1.0 < slope), (region, slope)
+        assert 1.0 < adaptive and slope < adaptive
+        assert adaptive == pytest.approx(plane, abs=0.05)
 
 
 # -- every map technique takes the mode ------------------------------------------------------

@@ -13,7 +13,8 @@ from harness.technique import Frame, reset_gl_state
 from harness.scene.transforms import camera_matrices
 from techniques.common.light_maps import MapShading
 from techniques.sm.sm import SHADING as SM_SHADING
-from techniques.csm.csm import CascadedShadowMap, cascade_of, slice_corners, split_depths
+from techniques.csm.csm import (CascadedShadowMap, cascade_of, scene_depth_range, slice_corners,
+                                split_depths)
 
 
 def test_split_depths_follow_the_practical_split_scheme():
@@ -55,6 +56,45 @@ def test_cascade_of_takes_the_first_slice_that_reaches_the_depth():
     ends = np.array([2.0, 5.0, 9.0])
     np.testing.assert_array_equal(cascade_of(np.array([0.5, 2.0, 2.1, 5.0, 9.0, 50.0]), ends),
                                   [0, 0, 1, 1, 2, 2])
+
+
+def test_fit_frustum_clips_the_camera_planes_to_the_scenes_depth_bounds():
+    """fit frustum's n and f, worked by hand: a camera at the origin looking down -z (the view
+    matrix is the identity), a box from z = -5 to -15: view depths 5 to 15, padded by 1e-3 of
+    the range and 1e-5 of the largest depth (0.01015), so near 0.1 and far 100 become 4.98985
+    and 15.01015; a box about the camera keeps near; one wholly beyond far (or behind the
+    camera) keeps both planes. Catches the camera's far plane used as it is (issue 46: far 100
+    on a scene 15 units deep put every pixel in cascade 0)."""
+    view = np.eye(4)
+    box = np.array([[-1.0, -1.0, -15.0], [1.0, 1.0, -5.0]])
+    assert scene_depth_range(view, box, 0.1, 100.0) == pytest.approx((4.98985, 15.01015))
+    around = np.array([[-1.0, -1.0, -15.0], [1.0, 1.0, 5.0]])
+    assert scene_depth_range(view, around, 0.1, 100.0) == pytest.approx((0.1, 15.02015))
+    assert scene_depth_range(view, box, 0.1, 3.0) == (0.1, 3.0)
+    assert scene_depth_range(view, -box[::-1], 0.1, 100.0) == (0.1, 100.0)
+
+
+@pytest.mark.parametrize("fit, holding", [(None, 4), ("sdsm", 4), ("frustum", 3)])
+def test_every_cascade_holds_pixels_whatever_the_far_plane(fit, holding, gl_context, scene_at):
+    """Issue 46 item 5: real_airplane's camera has far 100 on a scene whose visible depths run
+    from about 3 to 13; split from near to far (0.1 to 100, lambda 0.5) the first cascade
+    reached 12.8 and held every pixel, the other three none. At the defaults (None: sdsm) each
+    of the 4 cascades now holds at least 2 % of the covered pixels (the run's ``cascade`` map:
+    which cascade each pixel used); under fit frustum, whose far plane is clipped to the
+    scene's box (13.7) but whose near stays 0.1 (the ground's box reaches behind the camera),
+    the last three do. Catches the split on the camera's planes as they are (fit frustum
+    before issue 46: 100 % in cascade 0), and sdsm's visible range lost."""
+    scene = scene_at("real_airplane", 128, 96)
+    assert scene.config.camera.far == 100
+    params = {} if fit is None else {"fit": fit}
+    frame = Frame(scene)
+    try:
+        output, technique = run_csm(scene, frame, res=256, **params)
+        used = output.maps["cascade"][frame.arrays.covered].astype(int)
+    finally:
+        frame.release()
+    shares = np.bincount(used, minlength=4) / used.size
+    assert len(technique.cascades) == 4 and (shares >= 0.02).sum() == holding, shares
 
 
 def run_csm(scene, frame=None, camera=None, **params):
@@ -162,7 +202,7 @@ def test_stabilised_cascades_keep_v_when_the_camera_changes_by_less_than_a_texel
     try:
         results = {}
         for stabilize in (False, True):
-            base, before = run_csm(scene, frame, stabilize=stabilize, res=256)
+            base, before = run_csm(scene, frame, stabilize=stabilize, res=256, fit="frustum")
             texel = before.cascades[0].texel_world
             right = frame.camera.view[0, :3]
             # cascade 0's sphere centre moves by 0.6 of its texel either way
@@ -172,7 +212,7 @@ def test_stabilised_cascades_keep_v_when_the_camera_changes_by_less_than_a_texel
             camera = moved(frame, 0.6 * texel * right) if change == "move" \
                 else turned(frame, np.degrees(0.6 * texel / distance))
             after_output, after = run_csm(scene, frame, camera=camera, stabilize=stabilize,
-                                          res=256)
+                                          res=256, fit="frustum")
             frame.camera = camera_matrices(frame.scene.config.camera, frame.width, frame.height)
             same_cascade = base.maps["cascade"] == after_output.maps["cascade"]
             changed = (base.visibility != after_output.visibility) & same_cascade
@@ -220,7 +260,7 @@ def test_stabilised_cascades_do_not_flicker_at_fixed_world_points_in_a_turn(
     scene = shipped_scenes["terrain_long"].model_dump(mode="json")
     scene.update(resolution=[96, 96], motion={"frames": 4, "camera_orbit": 3 * 4 / 47})
     built = build_scene("terrain_long", config.Scene(**scene))
-    rows = {stabilize: evaluate(built, "csm", {"stabilize": stabilize}).row
+    rows = {stabilize: evaluate(built, "csm", {"stabilize": stabilize, "fit": "frustum"}).row
             for stabilize in (False, True)}
     assert rows[True]["world_changed_pct_max"] == 0.0
     assert rows[False]["world_changed_pct"] > 0.0

@@ -1,5 +1,6 @@
 """A view with no surface in it: SDSM's depth reduction over no covered pixel is empty, and csm
-falls back to the camera's near and far (the PSSM fit), as documented, with finite matrices.
+falls back to fit frustum's range (here, the scene's box wholly behind the camera, the camera's
+near and far), as documented, with finite matrices.
 Catches the empty range read as NaN (the reduction's start values decode to NaN, and NaN > NaN
 is false, so ``empty`` said no): every cascade's view and projection had NaNs, and the row read
 ok with nonfinite=16 (seen failing)."""
@@ -23,7 +24,7 @@ def test_sdsm_over_an_empty_view_fits_the_frustum(tmp_path, evaluate, monkeypatc
     (tmp_path / "scenes.yaml").write_text(yaml.safe_dump({"scenes": {"e": SCENE}}))
     scene = load_scene("e", tmp_path / "scenes.yaml")
     sdsm = evaluate(scene, "csm", {"fit": "sdsm"}, frames=1, warmup=0, samples=1)
-    frustum = evaluate(scene, "csm", {}, frames=1, warmup=0, samples=1)
+    frustum = evaluate(scene, "csm", {"fit": "frustum"}, frames=1, warmup=0, samples=1)
     assert not sdsm.frame_arrays.covered.any()
     for result in (sdsm, frustum):
         assert result.row["status"] == "ok" and result.row["nonfinite"] == 0, result.row

@@ -17,9 +17,12 @@ SHIPPED = ("sphere_plane", "box_plane", "pins", "castle", "crowd", "terrain_long
            "silhouette_hard", "camera_in_shadow", "jeep")
 MAPS = (256, 1024, 4096)
 FILTERED = ("pcf", "mdsm", "silhouette")
-# the real corpus (issue 32: files shipped in packages), at its own 512 x 384 and one map size,
-# the one issue 32's table was measured at: 16 runs, about 15 s more
-CORPUS = ("real_airplane", "real_airplane_spot", "real_plates", "real_plates_spot")
+# the real corpus (issue 32: files shipped in packages; issue 46: the user meshes), at its own
+# 512 x 384 and every map size (issue 46: the defaults must hold where no tuning ran, at each
+# point of the curve the tuner searches): 120 runs, about a minute more on 2 busy cores
+CORPUS = ("real_airplane", "real_airplane_spot", "real_plates", "real_plates_spot",
+          "real_vault", "real_vault_spot", "real_monkey", "real_monkey_spot", "real_beams",
+          "real_beams_spot")
 CORPUS_MAP = 1024
 
 # The runs that miss the issue's bar at the defaults, and why. No other default serves them
@@ -27,28 +30,28 @@ CORPUS_MAP = 1024
 # box_plane, castle, crowd, jeep and camera_in_shadow and leaves MDSM's leaks as they are;
 # slope_bias 4 leaves the acne of these runs above 0.1 % except on jeep and terrain_long,
 # whose leaks stay.
-RESOLUTION = ("a texel covers 2-5 pixels of this view: pcf's smallest region (one texel, "
-              "Reeves et al.'s MinSize) and the map's own jaggies reach past the 2-pixel edge "
-              "band (sm's half texel already reaches 0.15 % on camera_in_shadow)")
+RESOLUTION = ("a texel covers 2-5 pixels of this view: the map's own jaggies reach past the "
+              "2-pixel edge band (sm's half texel already reaches 0.14 % acne on "
+              "camera_in_shadow; pcf 0.33 %, 1.49 % with the one-texel region before issue 46)")
 WINDOW = ("MDSM's extra depths come from the q-texel window, so its soft edge reaches the "
-          "window radius plus the kernel (about 2.5 texels) beyond the shadow boundary, past "
-          "the 2-pixel band where a texel covers a pixel or more: Pagot et al.'s semantics, "
-          "as wide with slope_bias 0")
+          "window plus the kernel (about 1.5 texels with the 2 x 2 pair, 2.5 with the 3 x 3 "
+          "before issue 46) beyond the shadow boundary, past the 2-pixel band where a texel "
+          "covers a pixel or more: Pagot et al.'s semantics, as wide with slope_bias 0")
 TERRAIN = ("terrain_long puts an 840-unit plane in one map: texels of 17-270 pixels near the "
            "camera and sub-texel boxes; sm misses the bar too (acne 1.2 % at map 1024), this "
            "is the warps' scene")
-PLATES = ("real_plates' stacked thin plates under a grazing sun: MDSM leaks 0.63 % (sm 0.02 %); "
-          "with no slope term still 0.37 % (and 58 % acne), with one depth per cell (n 1) "
-          "0.15 %, with the 2 x 2 window (q 4) 0.37 %: most of it is the extra depth the "
-          "9-texel window selects (the max of the window behind a thin plate's edge), Pagot "
-          "et al.'s method, not the bias; bias_mode receiver_plane takes 0.14 off at 0.28 % acne")
+CORPUS_WINDOW = (WINDOW + "; on the corpus at map 256 (a texel covers 2 to 4 pixels of the "
+                 "512 x 384 views) leaks 0.36 to 2.4 % beyond sm's, and on Suzanne under the "
+                 "sun 0.45 % acne, where the 3 x 3 pair left leaks of 0.6 to 6.7 % and acne of "
+                 "0.2 to 1.2 % (acne under the spots at most 0.19 % now)")
 EXCEPTIONS = {
-    ("real_plates", CORPUS_MAP, "mdsm"): PLATES,
     **{("terrain_long", res, t): TERRAIN for res in MAPS for t in FILTERED},
-    **{(s, 256, "pcf"): RESOLUTION
-       for s in ("camera_in_shadow", "castle", "crowd", "jeep", "pins", "silhouette_hard")},
-    **{(s, 256, "mdsm"): WINDOW for s in SHIPPED},
-    **{(s, 1024, "mdsm"): WINDOW for s in ("camera_in_shadow", "castle", "crowd", "pins")},
+    ("camera_in_shadow", 256, "pcf"): RESOLUTION,
+    **{(s, 256, "mdsm"): WINDOW for s in SHIPPED if s not in ("box_plane", "slant_edge")},
+    **{(s, 1024, "mdsm"): WINDOW for s in ("camera_in_shadow", "castle")},
+    **{(s, 256, "mdsm"): CORPUS_WINDOW for s in (
+        "real_airplane_spot", "real_plates", "real_plates_spot", "real_vault_spot", "real_monkey",
+        "real_beams", "real_beams_spot")},
 }
 del EXCEPTIONS["terrain_long", 4096, "silhouette"]  # meets the bar
 
@@ -69,7 +72,7 @@ def fair_runs(gl_context, scene_at):
         frame = Frame(scene)
         mask = frame.compared_pixels(reference.covered)
         try:
-            for res in (CORPUS_MAP,) if name in CORPUS else MAPS:
+            for res in MAPS:
                 for technique in ("sm", *FILTERED):
                     cls = registry.get(technique)
                     run = cls(cls.Params(res=res))
@@ -81,15 +84,15 @@ def fair_runs(gl_context, scene_at):
                     reset_gl_state()
                     runs[name, res, technique] = (
                         metrics.acne_pct(v, reference.visibility, mask=mask),
-                        metrics.leak_pct(v, reference.visibility, mask=mask))
+                        metrics.leak_pct(v, reference.visibility, mask=mask),
+                        metrics.edge_mae(v, reference.visibility, mask=mask))
         finally:
             frame.release()
     return runs
 
 
 @pytest.mark.parametrize("technique", FILTERED)
-@pytest.mark.parametrize("scene_name, res", [(s, r) for s in SHIPPED for r in MAPS]
-                         + [(s, CORPUS_MAP) for s in CORPUS])
+@pytest.mark.parametrize("scene_name, res", [(s, r) for s in SHIPPED + CORPUS for r in MAPS])
 def test_defaults_leave_no_acne_and_no_leak_beyond_sm(fair_runs, scene_name, res, technique):
     """Issue 12: at its defaults a technique shows acne_pct <= 0.1 and leak_pct <= sm's + 0.1
     on every shipped scene and map size; issue 32: <= 0.3 and sm's + 0.3 on the real corpus at
@@ -97,7 +100,7 @@ def test_defaults_leave_no_acne_and_no_leak_beyond_sm(fair_runs, scene_name, res
     exception that starts meeting the bar fails here too, so the list stays true. Catches a
     slope term lost or too small (pcf at 1024 on castle, crowd, jeep: acne; silhouette on the
     box face), or too large (leaks beyond sm's)."""
-    acne, leak = fair_runs[scene_name, res, technique]
+    acne, leak, _ = fair_runs[scene_name, res, technique]
     sm_leak = fair_runs[scene_name, res, "sm"][1]
     bar = 0.3 if scene_name in CORPUS else 0.1  # issue 32's target on real files
     meets = acne <= bar and leak <= sm_leak + bar
@@ -106,6 +109,32 @@ def test_defaults_leave_no_acne_and_no_leak_beyond_sm(fair_runs, scene_name, res
         assert meets, f"acne {acne:.3f} %, leak {leak:.3f} % (sm {sm_leak:.3f} %)"
     else:
         assert not meets, f"now meets the bar (acne {acne:.3f}, leak {leak:.3f}): drop the exception"
+
+
+@pytest.mark.parametrize("scene_name, res", [(s, r) for s in SHIPPED + CORPUS for r in MAPS])
+def test_pcf_edges_are_no_worse_than_sm(fair_runs, scene_name, res):
+    """Issue 46 item 5: pcf's filter exists to improve edges, so at its defaults its edge_mae
+    is at most sm's at the same map size, on every shipped scene and every real-corpus scene.
+    Measured at the region of half the pixel's footprint, at least a quarter texel: pcf's
+    edge_mae is 0.32 to 0.99 of sm's on these 60 runs. Catches the region at its earlier
+    default (res_factor 1, min_size 1 texel): worse than sm on 25 of the 60, up to 1.31 x
+    (every corpus scene and seven shipped ones at map 256, where a texel covers pixels and a
+    texel's blur passes the pixel; the vault at 1024 and 4096, Suzanne under the spot at 4096,
+    camera_in_shadow and castle at 1024, terrain_long at 4096, where the footprint's bounding
+    box, wider than a slanted footprint, blurs past the pixel)."""
+    pcf_edge, sm_edge = fair_runs[scene_name, res, "pcf"][2], fair_runs[scene_name, res, "sm"][2]
+    assert pcf_edge <= sm_edge, f"pcf {pcf_edge:.4f}, sm {sm_edge:.4f}"
+
+
+@pytest.mark.parametrize("scene_name, res", [(s, r) for s in CORPUS if s.endswith("_spot")
+                                              for r in MAPS])
+def test_mdsm_leaves_no_acne_under_the_corpus_spots(fair_runs, scene_name, res):
+    """Issue 46 item 5: mdsm's acne under spot lights at most 0.3 % at its defaults, at every
+    map size, though its window's leaks at 256 stay excepted above (measured: at most 0.19 %,
+    real_beams_spot at 256). Catches the 3 x 3 kernel and window of before issue 46 (0.33 to
+    1.24 % at 256 on all five: the kernel's reach, not the bias)."""
+    acne = fair_runs[scene_name, res, "mdsm"][0]
+    assert acne <= 0.3, f"acne {acne:.3f} %"
 
 
 ZERO_BIAS = {
@@ -186,7 +215,9 @@ def test_no_acne_far_from_the_origin(evaluate):
 # shipped 512 x 512 view and a 256 x 256 one (a quarter of the pixels, each texel a quarter of
 # the pixels too, so a bias failure stays as visible).
 ARCHITECTURE_IMAGES = (256, 512)
-# mdsm on the 512 view: leak 1.03 % against sm's 0.009 % (1176 pixels: 1061 on the grazing
+# mdsm on the 512 view at its defaults since issue 46 (a 2 x 2 kernel over a 2 x 2 window):
+# leak 0.143 % against sm's 0.009 %, still over the bar. With the 3 x 3 pair, as measured here
+# before: leak 1.03 % against sm's 0.009 % (1176 pixels: 1061 on the grazing
 # roofs, 93 on walls, 17 on the ground; 813 of them 3 pixels from the reference boundary, just
 # outside the 2-pixel band, 232 at 4, 56 at 5; V mostly 1/18 to 3/18: one to three of the 18
 # depth tests lit). Each is a shadowed point whose kernel reaches a cell whose window maximum
@@ -364,24 +395,34 @@ def test_normal_offset_on_a_point_light_uses_the_face_texel_at_the_point(evaluat
 
 
 def test_normal_offset_in_cascades_uses_the_cascade_texel(evaluate, scene_at):
-    """csm on box_plane at map 256 with normal_offset 32: every floor pixel outside the edge
-    band is the slab test of its point lifted by 32 x w x sin(theta), w the texel side of the
+    """csm on box_plane at map 256 with normal_offset 64: every floor pixel outside the edge
+    band is the slab test of its point lifted by 64 x w x sin(theta), w the texel side of the
     cascade that pixel used (column cascade_texel_<i>, map ``cascade``), at 4 and at 2 splits
-    (the shadow's cascade has texels of 0.078 and 0.163 units: 414 and 318 shadowed pixels
-    predicted; 0 differ). Catches the offset not reaching csm's shader (123 and 376 pixels
-    differ) or the texel of another cascade (the last one's: no shadow predicted at all)."""
+    under fit frustum (cascade texels of 0.022 to 0.070 units: 435 and 368 shadowed pixels
+    predicted; 0 differ; 208 and 271 differ from the unmoved points' test, and 11 at 4 splits
+    with the last cascade's texel for every pixel). Before issue 46 the frustum fit split the
+    camera's near and far (0.1, 100) as they were, texels of 0.078 and 0.163 in the shadow's
+    cascade, and offset 32 told them apart; with the far plane clipped to the scene (and under
+    sdsm, finer still) 32 texels lift the points too little (53 differ from unmoved at 4
+    splits, 0 under sdsm). Catches the offset not reaching csm's shader or the texel of
+    another cascade (the last one's)."""
     scene = scene_at("box_plane", 256)
     low, high = np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 2.0])  # the box
     for splits in (4, 2):
-        e = evaluate(scene, "csm", {"res": 256, "splits": splits, "normal_offset": 32.0})
+        e = evaluate(scene, "csm", {"res": 256, "splits": splits, "normal_offset": 64.0,
+                                    "fit": "frustum"})
         texel = np.array([e.row[f"cascade_texel_{i}"] for i in range(splits)])
         cascade = np.nan_to_num(e.arrays["map_cascade"]).astype(int)
-        wrong, shadowed = lifted_mismatch(e, texel[cascade], 32.0, low, high,
+        wrong, shadowed = lifted_mismatch(e, texel[cascade], 64.0, low, high,
                                           direction=scene.light.direction)
         assert shadowed > 250 and wrong <= 2, (splits, wrong, shadowed)
-        unmoved, _ = lifted_mismatch(e, 0 * texel[cascade], 32.0, low, high,
+        unmoved, _ = lifted_mismatch(e, 0 * texel[cascade], 64.0, low, high,
                                      direction=scene.light.direction)
         assert unmoved > 100, (splits, unmoved)
+    four = evaluate(scene, "csm", {"res": 256, "normal_offset": 64.0, "fit": "frustum"})
+    last_texel = np.full(four.visibility.shape, four.row["cascade_texel_3"])
+    last, _ = lifted_mismatch(four, last_texel, 64.0, low, high, direction=scene.light.direction)
+    assert last > 2, last
 
 
 def shadow_centroid(e) -> np.ndarray:

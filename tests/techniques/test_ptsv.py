@@ -49,6 +49,10 @@ SCENES = [(SCENE_FILE, name) for name, scene in config.load_scenes(SCENE_FILE).i
 DIFFERENCES = {
     "castle": (0, 0, 1, 0), "slant_edge": (26, 0, 0, 0), "hard_grazing_light": (0, 1, 0, 0),
     "real_airplane_spot": (1, 0, 0, 0), "real_plates": (2, 0, 0, 0),
+    "real_monkey": (2, 0, 0, 0),
+    # sv wrong where compas's boxes touch in one plane: a beam's side face (sv lit) and a
+    # ground pixel beside the beams lying on the ground (sv shadowed); rt agrees with ptsv
+    "real_beams": (0, 0, 1, 0), "real_beams_spot": (0, 0, 1, 0),
     # sv wrong: the occluder the near plane cuts; float32 depths 1e5 units from the origin
     "hard_near_plane_crossing": (0, 0, 13, 0), "hard_far_from_origin": (0, 0, 5, 0),
     "hard_texel_corners": (100, 0, 0, 0), "hard_degenerate_open_meshes": (0, 1, 0, 0),

@@ -217,7 +217,7 @@ def test_curves_walk_one_knob_at_a_time_from_the_defaults(tmp_path):
                   "  mdsm: {curve: {k: [1, 4], n: [1]}, set: {res: 512}}\n"
                   "  sm: [{curve: {res: [256]}}, {}]\n").runs
     assert sorted((r.params["res"], r.params["n"], r.params["k"]) for r in chosen
-                  if r.technique == "mdsm") == [(512, 1, 9), (512, 2, 1), (512, 2, 4)]
+                  if r.technique == "mdsm") == [(512, 1, 4), (512, 2, 1), (512, 2, 4)]
     assert sorted(r.params["res"] for r in chosen if r.technique == "sm") == [256, 1024]
 
 

