@@ -82,7 +82,7 @@ def drop_stale_bindings() -> None:
     viewport = [int(v) for v in GL.glGetIntegerv(GL.GL_VIEWPORT)]
     target = Framebuffer(1, 1, (GL.GL_RGBA8,), depth=False)
     program = Program(HARNESS_GLSL / "fullscreen.vert.glsl", HARNESS_GLSL / "nothing.frag.glsl",
-                      geometry=HARNESS_GLSL / "nothing.geom.glsl")
+                      geometry=HARNESS_GLSL / "pass_through.geom.glsl")
     triangle = FullscreenTriangle()
     try:
         target.bind()
