@@ -138,7 +138,9 @@ def scenes_lines(path: Path | None) -> list[str]:
         return ["scenes: no scene file (no ./scenes.yaml, and none shipped with the package); "
                 "give one with --scene-file"]
     lines = [f"scenes (from {path}):"]
-    for name, scene in config.load_scenes(path, triangle_budget=None).items():
+    scenes = config.load_scenes(path, triangle_budget=None, only=())
+    node = config.read_yaml(path)[1]
+    for name, scene in scenes.items():
         geometry = (f"{scene.family.kind} family, {scene.family.triangles:,} triangles"
                     if scene.family else f"{len(scene.objects)} objects")
         if scene.family and scene.objects:
@@ -147,6 +149,11 @@ def scenes_lines(path: Path | None) -> list[str]:
                      f"{scene.light.type} light, {geometry}, effects {'+'.join(scene.effects)}")
         if scene.description:
             lines.append(f"      {scene.description}")
+        try:  # one scene's unusable mesh file is its own line, not the end of the list
+            config.check_scenes(path, scenes, [name], None, node)
+        except config.ConfigError as e:
+            lines.append(f"      CANNOT LOAD (a command naming it exits 2): {e}")
+            continue
         for obj in scene.objects:
             if isinstance(obj, config.MeshFile):
                 parts = config.mesh_parts(config.resolve_mesh_path(path, obj), obj.up)

@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..config import ConfigError
+from ..machine import warnings_log
 from ..machine.interrupt import deferred, finishing, raise_if_interrupted
 from . import Plan, RunSpec, record_run
 from .measure import return_freed_memory
@@ -53,8 +54,16 @@ def _frame_on_worker(scene, frames: int, warmup: int):
 
 def run_on_worker(specs: list[RunSpec], scene, platform: str | None):
     """Runs of one scene and resolution on this worker, in interleaved rounds:
-    ([(row, its arrays or None), ...] in the order of ``specs``, the reference or None). A
-    scene whose reference or frame fails gives its runs error rows, as in the serial runner."""
+    ([(row, its arrays or None), ...] in the order of ``specs``, the reference or None, the
+    lines libraries warned meanwhile). A scene whose reference or frame fails gives its runs
+    error rows, as in the serial runner. The warnings go back to the client, which keeps them
+    in the folder's warnings.log as it does its own: a worker's stderr is the terminal."""
+    with warnings_log.Caught() as caught:  # one task at a time: a worker has one thread
+        finished, reference = _runs_on_worker(specs, scene, platform)
+    return finished, reference, caught.lines
+
+
+def _runs_on_worker(specs: list[RunSpec], scene, platform: str | None):
     from distributed import get_worker
 
     from ..gl.context import get_context
@@ -154,7 +163,8 @@ def dask_renderer(*, scheduler: str | None = None, n_workers: int = 2,
             bar.stage(f"{len(tasks)} tasks on {len(client.scheduler_info()['workers'])} "
                       "Dask workers")
             for future in as_completed(futures):
-                finished, reference = future.result()
+                finished, reference, warned = future.result()
+                warnings_log.append(out_dir, warned)
                 with finishing():  # a task's runs are all done: each stored even on Ctrl-C
                     for spec, (row, arrays) in zip(specs_of[future.key], finished):
                         record_run(out_dir, spec, row, arrays, reference)

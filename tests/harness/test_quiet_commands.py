@@ -106,6 +106,24 @@ def test_a_worker_process_warning_comes_back_as_lines(monkeypatch):
     assert len(lines) == 1 and "UserWarning" in lines[0] and "in a worker" in lines[0]
 
 
+def test_a_dask_worker_warning_comes_back_as_lines(monkeypatch):
+    """What a Dask worker warns while it renders a task comes back with the task's rows (the
+    client appends it to DIR/warnings.log), not printed on the worker's stderr, which is the
+    terminal: catches run_on_worker without its catching."""
+    from harness.run import distributed
+
+    def noisy(specs, scene, platform):
+        warnings.warn("a library's warning in a Dask worker", UserWarning)
+        return ["rows"], "reference"
+
+    monkeypatch.setattr(distributed, "_runs_on_worker", noisy)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        finished, reference, lines = distributed.run_on_worker([], None, None)
+    assert (finished, reference) == (["rows"], "reference")
+    assert len(lines) == 1 and "UserWarning" in lines[0] and "Dask worker" in lines[0]
+
+
 def test_caught_lines_keep_warnings_and_log_records():
     import logging
 

@@ -321,6 +321,24 @@ def test_a_bad_mesh_blocks_only_its_own_scene(tmp_path, capsys):
         load_scene("bad", scene_file)
 
 
+def test_list_shows_every_scene_and_the_one_it_cannot_load(tmp_path, capsys):
+    """``list`` on a file whose scene ``bad`` names a missing mesh lists ``good`` with its
+    mesh, and ``bad`` with the one-line reason, exit 0. Broken version caught (the old
+    behaviour): every scene's meshes checked before listing, so ``list`` exited 2 and listed
+    no scene."""
+    (tmp_path / "m.obj").write_text("v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n")
+    scene_file = write_scenes(tmp_path, {
+        "good": scene_with(objects__1={"shape": "mesh", "path": "m.obj"}),
+        "bad": scene_with(objects__1={"shape": "mesh", "path": "missing.obj"})})
+    assert cli.main(["list", "--scene-file", str(scene_file)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    good, bad = (next(i for i, line in enumerate(out) if line.split()[:1] == [name])
+                 for name in ("good", "bad"))
+    assert out[good + 1].strip().startswith("mesh m.obj: 1 triangles"), out[good + 1]
+    assert "CANNOT LOAD" in out[bad + 1] and "scenes.bad.objects.1.path" in out[bad + 1]
+    assert "no such file" in out[bad + 1]
+
+
 COLLADA = """<?xml version="1.0" encoding="utf-8"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
   <asset><up_axis>Z_UP</up_axis></asset>
