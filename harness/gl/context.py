@@ -1,4 +1,5 @@
-"""One GL context per process, on pyrender's OSMesa or EGL platform."""
+"""One GL context per process, on pyrender's OSMesa or EGL platform (a sweep makes it anew
+between scenes' groups, :meth:`GLContext.renew`, once no GL object is alive)."""
 
 from __future__ import annotations
 
@@ -57,6 +58,22 @@ class GLContext:
 
     def make_current(self) -> None:
         self._platform.make_current()
+
+    def renew(self) -> None:
+        """Destroy the context and make a new one of the same platform, current: the driver's
+        own memory goes with the old one. llvmpipe keeps, once every object of a scene's group
+        is deleted, what its draws of that scene allocated (silhouette's three runs on
+        instancing@1e6: 0.3 GiB, 0.17 of it C heap, the rest large blocks): only destroying
+        the context gives it back. Every GL object of this process must be deleted first (a
+        name kept from the old context means nothing in the new one)."""
+        self._platform.delete_context()
+        self._platform.init_context()
+        self._platform.make_current()
+
+
+def current() -> GLContext | None:
+    """The process's context if one was created, else None (nothing is started)."""
+    return _current
 
 
 def get_context(platform: str | None = None) -> GLContext:

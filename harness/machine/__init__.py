@@ -6,6 +6,8 @@
   long loops anywhere (mesh loading, the sweep) call ``raise_if_interrupted``.
 - ``warnings_log``: library warnings caught as lines (a command's, a report worker's) and
   appended to the folder's ``warnings.log``, never printed.
+- ``memory``: the process's resident memory, the peak of a stretch of work (what a sweep's
+  batches are sized by) and the C heap's free pages given back.
 
 Nothing here imports another part of the harness.
 """

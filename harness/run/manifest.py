@@ -17,7 +17,7 @@ from ..gl import measure as pass_measure
 from ..gl.measure import default_timer
 from ..machine.timing import CONFIDENCE, NOISY_CONTENTION
 from ..technique import registry
-from .measure import BATCH_BYTES, BATCH_RESIDENT, BATCH_RUNS
+from .measure import BATCH_BYTES, BATCH_RESIDENT, BATCH_RUNS, UNSEEN_BYTES_PER_TRIANGLE
 from .plan import Plan
 
 
@@ -78,14 +78,15 @@ def _git_dirty() -> bool | None:
         return None
 
 
-def _meshes(scene) -> list[dict]:
-    """Each mesh file of the scene as built: its triangles, parts (open ones: not closed),
-    the zero-area triangles dropped from it, and what it holds that defines no triangle,
-    skipped and counted by kind (harness.config.mesh_obj)."""
+def _meshes(config, source: Path | None) -> list[dict]:
+    """Each mesh file of the scene (its description and the file its paths are relative to)
+    as built: its triangles, parts (open ones: not closed), the zero-area triangles dropped
+    from it, and what it holds that defines no triangle, skipped and counted by kind
+    (harness.config.mesh_obj)."""
     out = []
-    for obj in scene.config.objects:
+    for obj in config.objects:
         if isinstance(obj, cfg.MeshFile):
-            parts = cfg.mesh_parts(cfg.resolve_mesh_path(scene.source or Path("."), obj), obj.up)
+            parts = cfg.mesh_parts(cfg.resolve_mesh_path(source or Path("."), obj), obj.up)
             out.append({"path": obj.label, "triangles": parts.triangles, "parts": len(parts.names),
                         "open_parts": parts.closed.count(False),
                         "degenerate_dropped": parts.dropped, "skipped": dict(parts.skipped)})
@@ -151,10 +152,10 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
                for i in previous.get("invocations", []) if i.get("id") != session["id"]]
     invocations = earlier + [session]
     scenes = previous.get("scenes") if isinstance(previous.get("scenes"), dict) else {}
-    scenes = {**scenes, **{name: {"description": scene.config.description,
-                                  "effects": list(scene.config.effects),
-                                  "meshes": _meshes(scene)}
-                           for name, scene in plan.scenes.items()}}
+    scenes = {**scenes, **{name: {"description": config.description,
+                                  "effects": list(config.effects),
+                                  "meshes": _meshes(config, source)}
+                           for name, config, source in plan.described()}}
     experiment = {"experiment": plan.experiment_path, "experiment_hash": plan.experiment_hash}
     experiments = [e for e in previous.get("experiments", []) if isinstance(e, dict)
                    and e != experiment] + [experiment]
@@ -174,7 +175,8 @@ def write_manifest(out_dir: Path, plan: Plan, context, session: dict) -> None:
                                        if counters_missing else {"available": True})},
         "timing": {"interval": f"{CONFIDENCE:.0%} interval of the median",
                    "noisy_contention": NOISY_CONTENTION, "batch_bytes": BATCH_BYTES,
-                   "batch_runs": BATCH_RUNS, "batch_resident_bytes": BATCH_RESIDENT},
+                   "batch_runs": BATCH_RUNS, "batch_resident_bytes": BATCH_RESIDENT,
+                   "unseen_bytes_per_triangle": UNSEEN_BYTES_PER_TRIANGLE},
         "gpu": _nvidia_gpus(),
         "cpu": _cpu(),
         "git_commit": _git_commit(),

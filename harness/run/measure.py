@@ -18,6 +18,7 @@ import numpy as np
 
 from ..technique import registry
 from ..machine import interrupt
+from ..machine.memory import PeakWatch, resident_bytes, trim_heap
 from ..machine.timing import cpu_sample, others_time
 from .plan import RunSpec
 from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one_line, score_run,
@@ -28,13 +29,26 @@ from .score import (FrameTruth, SequenceState, first_columns, observe_frame, one
 # over all of them instead of landing on one. A batch keeps its runs prepared at once, so it
 # closes when its runs' maps (their mem_bytes, known after the first frame) reach
 # BATCH_BYTES or it holds BATCH_RUNS runs: memory stays within about one batch (a 4096^2
-# float map is 64 MiB) whatever the sweep. It also closes when the process's resident memory
-# has grown by BATCH_RESIDENT since the batch began: at 10^6 triangles each prepared run holds
-# buffers the size of the scene (edges, adjacency, volumes) that its mem_bytes leaves out (sv
-# and silhouette at three settings each on two families at 10^6: a 3.60 GiB peak, 3.12 with it).
+# float map is 64 MiB) whatever the sweep. At 10^6 triangles a prepared run also holds
+# buffers the size of the scene that its mem_bytes leaves out (sv's edge quads: 0.6 GiB on
+# instancing@1e6), and its prepare passes through more (sv's: 2.1 GiB over what it keeps), so
+# the batch follows the resident memory its runs really take: it takes no run whose start
+# (prepare and warm-up), at the peak its technique showed (:class:`Footprints`), would take
+# the process more than BATCH_RESIDENT over where the batch began. A run over that alone
+# starts a batch of its own. Issue 53: make scale peaked at 5.2 GiB with three sv runs of
+# instancing@1e6 prepared while a fourth prepared.
 BATCH_BYTES = 256 * 2**20
 BATCH_RUNS = 16
-BATCH_RESIDENT = 2 * 2**30
+BATCH_RESIDENT = int(1.5 * 2**30)
+# A batch whose first run is expected to pass through this much starts on a GL context made
+# anew (``Frame.renew_context``): llvmpipe keeps what its draws of a large scene allocated
+# until its context goes (0.3 GiB after silhouette's three runs of instancing@1e6), and such a
+# run should not find the batches before it there.
+RENEW_BYTES = 256 * 2**20
+# What a technique never seen in this process is assumed to pass through at its start, per
+# triangle of the scene: about sv's at 10^6 (2.1 GiB on instancing@1e6), the most of any
+# technique shipped. At 10^3 that is 2.4 MiB: only a large scene makes such a run wait.
+UNSEEN_BYTES_PER_TRIANGLE = 2560
 
 
 @dataclass
@@ -187,48 +201,124 @@ def _measure_round(batch: list[_Timed], frame, turn: int) -> None:
 
 
 def return_freed_memory() -> None:
-    """Give the pages the C heap holds free back to the system, once a scene's group is done:
-    glibc keeps what numpy's scene-sized temporaries (edges, volumes, maps read back) and the
-    driver's threads freed in its heaps and per-thread arenas, so a sweep's resident memory grew
-    from scene to scene (4 families at 10^6, sm and silhouette: 1.24 GiB between groups, 0.74
-    with this). ``malloc_trim`` where the C library has it (glibc); elsewhere nothing."""
-    import ctypes
-    import ctypes.util
+    """Give back what a finished scene's group freed, before the next scene: glibc keeps what
+    numpy's scene-sized temporaries (edges, volumes, maps read back) and the driver's threads
+    freed in its heaps and per-thread arenas, so a sweep's resident memory grew from scene to
+    scene (4 families at 10^6, sm and silhouette: 1.24 GiB between groups, 0.74 with this).
+    Arrays held only by reference cycles are collected first, Dr.Jit's cache of freed blocks
+    flushed (where a reference or a technique loaded it) and llvmpipe's last bindings let go
+    (:func:`_return_batch_memory`)."""
     import gc
+    import sys
 
-    gc.collect()  # arrays held only by reference cycles first
-    try:
-        trim = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
-    except (OSError, AttributeError):
-        return
-    trim(0)
-
-
-def resident_bytes() -> int:
-    """This process's resident memory now; 0 where ``/proc/self/statm`` is missing."""
-    try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, IndexError):
-        return 0
+    gc.collect()
+    if "drjit" in sys.modules:
+        sys.modules["drjit"].flush_malloc_cache()
+    _return_batch_memory()
 
 
-def _batches(specs: list[RunSpec], start):
+def _return_batch_memory() -> None:
+    """What a batch's released runs freed, back to the system before the next batch prepares:
+    the driver's hold on their last-bound textures and buffers (where this process has a GL
+    context; ``harness.gl.objects.drop_stale_bindings``), then the heap's free pages."""
+    from ..gl import context
+
+    if context.current() is not None:
+        from ..gl.objects import drop_stale_bindings
+
+        drop_stale_bindings()
+    trim_heap()
+
+
+def _renew_context(frame) -> bool:
+    """The frame on a GL context made anew, where this process has one and nothing but the
+    frame lives in it, then the heap trimmed; whether it was."""
+    from ..gl import context
+
+    renewed = context.current() is not None and frame.renew_context(context.current())
+    if renewed:
+        trim_heap()
+    return renewed
+
+
+class Footprints:
+    """What each technique's runs passed through as they started (prepare, static setup,
+    warm-up): the peak resident memory over what the process held just before, the most any
+    of its runs took on each scene (scene key and size) it ran on, with that scene's
+    triangles. :meth:`predict` gives a run's from its technique's on the same scene; else the
+    most of what it took on other scenes of as many triangles and of what its smaller scenes
+    give, grown with the triangles (along the line through the two largest sizes, the most
+    of any scene at each: a map's bytes stay, an edge buffer's grow; from one size, by
+    UNSEEN_BYTES_PER_TRIANGLE for each triangle more); else UNSEEN_BYTES_PER_TRIANGLE for
+    each triangle."""
+
+    def __init__(self):
+        self.seen: dict[str, dict[tuple, tuple[int, int]]] = {}
+
+    def observe(self, technique: str, scene: tuple, triangles: int, peak_bytes: int) -> None:
+        scenes = self.seen.setdefault(technique, {})
+        scenes[scene] = (triangles, max(scenes.get(scene, (0, 0))[1], peak_bytes, 0))
+
+    def predict(self, technique: str, scene: tuple, triangles: int) -> int:
+        scenes = self.seen.get(technique, {})
+        if scene in scenes:
+            return scenes[scene][1]
+        by_size: dict[int, int] = {}
+        for size, peak in scenes.values():
+            if size <= triangles:
+                by_size[size] = max(by_size.get(size, 0), peak)
+        guesses = [by_size.pop(triangles)] if triangles in by_size else []
+        sizes = sorted(by_size)
+        if len(sizes) == 1:  # what it took there, the more triangles as an unseen one's
+            guesses.append(by_size[sizes[0]] + UNSEEN_BYTES_PER_TRIANGLE * (triangles - sizes[0]))
+        elif sizes:
+            (small, low), (large, high) = [(size, by_size[size]) for size in sizes[-2:]]
+            guesses.append(round(high + max(high - low, 0) / (large - small)
+                                 * (triangles - large)))
+        return max(guesses) if guesses else UNSEEN_BYTES_PER_TRIANGLE * triangles
+
+
+# one per process: what 10^5 triangles took tells a sweep what 10^6 will
+FOOTPRINTS = Footprints()
+_WATCH = PeakWatch(lambda: resident_bytes())
+
+
+def _batches(specs: list[RunSpec], start, frame):
     """The runs started (``start(spec)``: prepared and warmed up) in batches that close at
-    BATCH_RUNS runs, BATCH_BYTES of maps or BATCH_RESIDENT more resident memory; yields (the
-    runs that could not start, the batch)."""
-    queue = list(specs)
+    BATCH_RUNS runs or BATCH_BYTES of maps, and before a run whose start, at its technique's
+    :class:`Footprints` peak, would take the resident memory more than BATCH_RESIDENT over
+    where the batch began (a first run starts whatever it takes); yields (the runs that could
+    not start, the batch). The runs start in the order of that peak, the largest first (in
+    the plan's among equals). Before the first batch, and once the consumer is done with
+    each, what was freed goes back to the system; a batch whose first run is expected to pass
+    through RENEW_BYTES or more starts on a GL context made anew."""
+    scene = (frame.scene.key, frame.width, frame.height)
+    triangles = sum(len(part.faces) for part in frame.scene.parts)
+    # the runs that pass through the most first, while the group holds the least (each batch
+    # leaves some of the driver's memory behind: llvmpipe keeps what its draws allocated)
+    queue = sorted(specs, key=lambda spec: -FOOTPRINTS.predict(spec.technique, scene, triangles))
+    _return_batch_memory()  # what the frame's set-up and the counts passed through (0.16 GiB)
     while queue:
+        if FOOTPRINTS.predict(queue[0].technique, scene, triangles) >= RENEW_BYTES:
+            _renew_context(frame)
         failed, batch, batch_bytes, began = [], [], 0, resident_bytes()
-        while (queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES
-               and resident_bytes() - began < BATCH_RESIDENT):
-            timed = start(queue.pop(0))
+        while queue and len(batch) < BATCH_RUNS and batch_bytes < BATCH_BYTES:
+            before = resident_bytes()
+            spec = queue[0]
+            if batch and (before - began + FOOTPRINTS.predict(spec.technique, scene, triangles)
+                          > BATCH_RESIDENT):
+                break
+            queue.pop(0)
+            with _WATCH.watching() as seen:
+                timed = start(spec)
+            FOOTPRINTS.observe(spec.technique, scene, triangles, seen.peak - before)
             if not timed.alive:
                 failed.append(timed)
                 continue
             batch.append(timed)
             batch_bytes += timed.output.mem_bytes
         yield failed, batch
+        _return_batch_memory()
 
 
 def _finish(done: list[_Timed], score):
@@ -264,10 +354,14 @@ def run_group(specs: list[RunSpec], frame, reference, scene_ms: float, frags_sce
                                                   renderer))
 
     on_frame = on_frame or (lambda specs: None)
+    try:  # the counts every row takes, before a batch holds memory: at 10^6 triangles the
+        frame.scene.counts  # scene's edges keep 60 MiB and pass through 0.35 GiB more
+    except Exception:  # scoring meets it again, as the run's own error
+        pass
     if frame.frames > 1:
-        yield from _run_sequence(_batches(specs, start), frame, on_frame)
+        yield from _run_sequence(_batches(specs, start, frame), frame, on_frame)
         return
-    for failed, batch in _batches(specs, start):
+    for failed, batch in _batches(specs, start, frame):
         yield from _finish(failed, None)
         turn, waiting = 0, list(batch)
         while waiting:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -61,16 +62,71 @@ class RunSpec:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+# Triangles from which a built scene is kept only while it is the last one asked for.
+LARGE_SCENE = 2**18
+
+
+class SceneSet(Mapping):
+    """The plan's scenes by name (in the plan's order), each built when asked for: one under
+    LARGE_SCENE triangles is kept once built, a larger one only until another scene is asked
+    for or :meth:`release` (the sweep's, after that scene's group), so no two 10^6-triangle
+    scenes are ever built at once. Before, the plan held every scene built for the whole run
+    (make scale: the four families at 10^3 to 10^6, 0.1 GiB). A scene asked for again after
+    another large one is built again (a few seconds at 10^6): the sweep asks once per group.
+    :meth:`described` reads what no scene needs building for."""
+
+    def __init__(self, configs: dict[str, cfg.Scene], source: Path | None):
+        self.configs = dict(configs)
+        self.source = source
+        self._small: dict[str, BuiltScene] = {}
+        self._large: tuple[str, BuiltScene] | None = None
+
+    def __getitem__(self, name: str) -> BuiltScene:
+        if name in self._small:
+            return self._small[name]
+        if self._large is not None and self._large[0] == name:
+            return self._large[1]
+        config = self.configs[name]  # KeyError for a scene the plan does not have
+        self._large = None  # let the last large scene go before building the next
+        scene = build_scene(name, config, self.source)
+        if sum(len(part.faces) for part in scene.parts) < LARGE_SCENE:
+            self._small[name] = scene
+        else:
+            self._large = (name, scene)
+        return scene
+
+    def __iter__(self):
+        return iter(self.configs)
+
+    def __len__(self) -> int:
+        return len(self.configs)
+
+    def release(self) -> None:
+        """Let the large scene kept go (the small ones stay)."""
+        self._large = None
+
+    def described(self) -> list[tuple[str, cfg.Scene, Path | None]]:
+        """Each scene's name, description and the file its paths are relative to."""
+        return [(name, config, self.source) for name, config in self.configs.items()]
+
+
 @dataclass
 class Plan:
     """Validated runs and the scenes they need, ready to execute."""
 
     runs: list[RunSpec]
-    scenes: dict[str, BuiltScene]
+    scenes: Mapping  # name -> BuiltScene: a SceneSet, built as asked for
     experiment_hash: str
     experiment_path: str = ""
     notes: list[str] = field(default_factory=list)
     cost: str = "dynamic"  # the experiment's cost policy, every run's
+
+    def described(self) -> list[tuple[str, cfg.Scene, Path | None]]:
+        """Each scene's name, description and the file its paths are relative to, without
+        building a scene."""
+        if isinstance(self.scenes, SceneSet):
+            return self.scenes.described()
+        return [(name, scene.config, scene.source) for name, scene in self.scenes.items()]
 
 
 def parse_overrides(values: list[str]) -> dict[str, dict]:
@@ -263,8 +319,7 @@ def plan_runs(*, experiment_path: str | None, scene_file: str, scenes: list[str]
     if exp.cost == "static":
         _check_static(wanted_scenes, all_scenes, exp_path, node,
                       from_option=bool(timing and timing.get("cost")))
-    built = {name: build_scene(name, all_scenes[name], Path(scene_file))
-             for name in wanted_scenes}
+    built = SceneSet({name: all_scenes[name] for name in wanted_scenes}, Path(scene_file))
     versions = {tech: registered[tech].code_version() for tech in grids}
     runs: list[RunSpec] = []
     for (scene_name, width, height, tech, params_json), where in points.items():

@@ -4,6 +4,7 @@ harness.run.distributed's on Dask) that measures, scores and stores them; progre
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 from .. import results
@@ -174,41 +175,73 @@ def render_serial(plan: Plan, pending: list[RunSpec], out_dir: Path, context, ba
     """Render the pending runs, one scene and resolution at a time (its reference and G-buffer
     shared, its runs measured in interleaved rounds: :func:`run_group`), storing each run as
     its frames are done; yields (spec, row) for each. A scene whose reference or frame fails
-    gives its runs error rows, and the sweep goes on."""
-    from ..truth.reference import compute_reference
-    from ..technique import Frame
+    gives its runs error rows, and the sweep goes on.
+
+    Between groups nothing of the last one stays: its scene (built again by the plan when
+    another group asks for it), G-buffer, reference and runs are dropped, what they freed
+    goes back to the system (``return_freed_memory``) and the GL objects made during the
+    group are counted: any left alive (a technique's release that misses some) is a warning,
+    in DIR/warnings.log where the command keeps them; with no object alive in it at all (a
+    caller may hold its own), the GL context is made anew (``GLContext.renew``: what llvmpipe
+    kept of the group's draws goes with the old one). Every group starts on a context as the
+    first does: the state a technique assumes is set by the harness (``reset_gl_state``) and
+    by each pass, not left by an earlier group."""
+    from ..gl.objects import live_objects, names_now
 
     groups: dict[tuple, list[RunSpec]] = {}
     for spec in pending:
         groups.setdefault((spec.scene, spec.width, spec.height, spec.samples, spec.ref_seed),
                           []).append(spec)
     for (scene_name, width, height, samples, ref_seed), specs in groups.items():
-        scene = plan.scenes[scene_name].with_resolution(width, height)
         bar.stage(f"{scene_name} {width}x{height}: {len(specs)} run{'s' * (len(specs) > 1)}")
-        bar.status("reference")
-        frame = None
+        names = names_now()
         try:
-            reference = compute_reference(scene.at_frame(0), samples=samples, seed=ref_seed)
-            frame = Frame(scene)
-            frames, warmup = specs[0].frames, specs[0].warmup
-            scene_ms, frags_scene = frame.measure_scene_pass(frames, warmup)
-        except Exception as e:  # Mitsuba or GL cannot take this scene: its runs fail
-            if frame is not None:
-                frame.release()
-            for spec in specs:
-                row = failed_scene_row(spec, e)
-                record_run(out_dir, spec, row, None, None)
-                yield spec, row
-            continue
-        bar.status("interleaved rounds")
-        rounds = run_group(specs, frame, reference, scene_ms, frags_scene, context.renderer,
-                           on_frame=getattr(bar, "frame_done", None))
-        try:
-            for spec, row, arrays in rounds:  # within interrupt.finishing: stored at once
-                record_run(out_dir, spec, row, arrays, reference)
-                yield spec, row
+            yield from _render_group(plan, specs, out_dir, context, bar)
         finally:
-            rounds.close()  # leaves interrupt.finishing if a consumer stopped inside it
+            if release := getattr(plan.scenes, "release", None):
+                release()  # the plan's own copy of a large scene
+        # not after Ctrl-C: the process ends within interrupt.GRACE_S, manifest written first
+        if left := live_objects(names):
+            warnings.warn(f"{scene_name} {width}x{height}: GL objects left alive after its "
+                          f"group: {', '.join(f'{n} {kind}' for kind, n in left.items())} "
+                          "(a technique's release misses them)", RuntimeWarning, stacklevel=2)
+        elif not live_objects():  # no object of anyone else's either (a caller's own)
+            context.renew()  # what llvmpipe kept of the group's draws goes with the context
+        return_freed_memory()  # what the group left behind, before the next scene
+
+
+def _render_group(plan: Plan, specs: list[RunSpec], out_dir: Path, context, bar):
+    """One scene and resolution of :func:`render_serial`: what it builds lives in this
+    generator's frame, gone when it returns."""
+    from ..truth.reference import compute_reference
+    from ..technique import Frame
+
+    first = specs[0]
+    scene = plan.scenes[first.scene].with_resolution(first.width, first.height)
+    bar.status("reference")
+    frame = None
+    try:
+        reference = compute_reference(scene.at_frame(0), samples=first.samples,
+                                      seed=first.ref_seed)
+        frame = Frame(scene)
+        scene_ms, frags_scene = frame.measure_scene_pass(first.frames, first.warmup)
+    except Exception as e:  # Mitsuba or GL cannot take this scene: its runs fail
+        if frame is not None:
             frame.release()
-            del frame, reference
-            return_freed_memory()  # what the group left behind, before the next scene
+        for spec in specs:
+            row = failed_scene_row(spec, e)
+            record_run(out_dir, spec, row, None, None)
+            yield spec, row
+        return
+    del scene  # the frame holds it
+    bar.status("interleaved rounds")
+    rounds = run_group(specs, frame, reference, scene_ms, frags_scene, context.renderer,
+                       on_frame=getattr(bar, "frame_done", None))
+    try:
+        for spec, row, arrays in rounds:  # within interrupt.finishing: stored at once
+            record_run(out_dir, spec, row, arrays, reference)
+            del arrays  # written: not kept while the next run is scored
+            yield spec, row
+    finally:
+        rounds.close()  # leaves interrupt.finishing if a consumer stopped inside it
+        frame.release()

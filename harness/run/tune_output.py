@@ -52,7 +52,7 @@ def tuned_experiment(chosen: dict, plan) -> dict:
         if (width, height) != tuple(own):
             sizes.add((width, height))
     experiment: dict = {}
-    source = next((s.source for s in plan.scenes.values() if s.source is not None), None)
+    source = next((source for _, _, source in plan.described() if source is not None), None)
     if source is not None:
         experiment["scene_file"] = str(source.resolve())
     experiment["scenes"] = list(dict.fromkeys(scenes))

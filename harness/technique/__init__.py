@@ -44,6 +44,7 @@ from ..gl.alpha import AlphaTextures
 from ..gl.geometry import FullscreenTriangle, SceneMesh
 from ..gl import measure as pass_measure
 from ..gl.measure import PassMeter, default_timer
+from ..gl.objects import live_objects, names_now
 from ..gl.shaders import HARNESS_GLSL, Program
 from ..scene import BuiltScene
 from ..scene.transforms import camera_matrices
@@ -265,6 +266,15 @@ class Frame:
         self.scene = scene.at_frame(0)
         self.width, self.height = scene.width, scene.height
         self.camera = camera_matrices(self.scene.config.camera, self.width, self.height)
+        self.timer = default_timer(GL.glGetString(GL.GL_RENDERER).decode())
+        # why the driver cannot count pipeline statistics ('' where it can)
+        self.counters_missing = pass_measure.pipeline_statistics_missing()
+        self._make_gl_objects()
+        self.arrays = self._camera_pass()
+
+    def _make_gl_objects(self) -> None:
+        """The frame's own GL objects, the names they took noted (:meth:`renew_context`)."""
+        first = names_now()
         self.geometry = self._scene_mesh()
         # the cut-outs' textures for alpha_test.glsl (bind_alpha), where the scene has any
         self.alpha = AlphaTextures(self.scene.alpha_masks) if self.scene.has_alpha else None
@@ -272,11 +282,23 @@ class Frame:
         self.fullscreen_triangle = FullscreenTriangle()
         self.visibility_target = Framebuffer(self.width, self.height, (GL.GL_R32F,), depth=False)
         self.share_scene_depth(self.visibility_target)  # for draw_fullscreen(covered_only=True)
-        self.timer = default_timer(GL.glGetString(GL.GL_RENDERER).decode())
-        # why the driver cannot count pipeline statistics ('' where it can)
-        self.counters_missing = pass_measure.pipeline_statistics_missing()
         self.meter = self.new_meter()
-        self.arrays = self._camera_pass()
+        self._names = (first, names_now())
+
+    def renew_context(self, context) -> bool:
+        """Make the GL context anew (``GLContext.renew``: what llvmpipe kept of the draws so far
+        goes with the old one) and this frame's objects in it again, the G-buffer drawn again
+        (the same pixels: :attr:`arrays` stay), the state as ``reset_gl_state`` leaves it; only
+        when no other GL object lives (a run's, a caller's). Whether it did."""
+        first, made = self._names
+        if live_objects() != live_objects(first) or live_objects(made):
+            return False
+        self.release()
+        context.renew()
+        self._make_gl_objects()
+        self.gbuffer.render(self.geometry, self.camera.view_proj)
+        reset_gl_state()
+        return True
 
     def _scene_mesh(self) -> SceneMesh:
         s = self.scene

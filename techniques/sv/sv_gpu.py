@@ -61,27 +61,35 @@ def edge_faces(mesh: CleanMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return a[once], b[once], face[once], face[twin[once]]
 
 
-def edge_quads(mesh: CleanMesh) -> np.ndarray:
-    """The edge mesh's vertices (6 E, 15): first every edge's triangle (b, a, a at infinity),
-    then every edge's (b, a at infinity, b at infinity), with ends swapped in the shader where
-    the twin face is the lit one (the order of ``sv_volumes._sides``)."""
+def edge_quads(mesh: CleanMesh, out: np.ndarray | None = None) -> np.ndarray:
+    """The edge mesh's vertices (6 E, 15), float32: first every edge's triangle (b, a, a at
+    infinity), then every edge's (b, a at infinity, b at infinity), with ends swapped in the
+    shader where the twin face is the lit one (the order of ``sv_volumes._sides``). Written
+    corner by corner into ``out`` where given (a slice of the buffer being uploaded), never as
+    a float64 array of the whole: on instancing@1e6 that was 1.1 GiB, and the parts' blocks
+    concatenated took sv's prepare 2.3 GiB over what the process held (issue 53)."""
     a, b, face, twin_face = edge_faces(mesh)
     planes = face_planes(mesh)
+    own, twin = planes[face], planes[twin_face]
     v = mesh.vertices
+    out = np.empty((6 * len(a), 15), np.float32) if out is None else out
+    near_b, near_a, far_a, far_b = (b, a, 0), (a, b, 0), (a, b, 1), (b, a, 1)
+    for half, corners in zip(out.reshape(2, len(a), 3, 15),
+                             ((near_b, near_a, far_a), (near_b, far_a, far_b))):
+        for slot, (end, other, far) in zip(half.transpose(1, 0, 2), corners):
+            slot[:, 0:3], slot[:, 3:6] = v[end], v[other]
+            slot[:, 6:10], slot[:, 10:14], slot[:, 14] = own, twin, far
+    return out
 
-    def corner(end, other, far):
-        return np.concatenate([v[end], v[other], planes[face], planes[twin_face],
-                               np.full((len(end), 1), float(far))], axis=1)
 
-    near_a, near_b, far_a, far_b = corner(a, b, 0), corner(b, a, 0), corner(a, b, 1), corner(b, a, 1)
-    return np.concatenate([np.stack([near_b, near_a, far_a], axis=1),
-                           np.stack([near_b, far_a, far_b], axis=1)]).reshape(-1, 15)
-
-
-def face_corners(mesh: CleanMesh) -> np.ndarray:
-    """The faces' corners with their face's plane (3 F, 7)."""
-    planes = np.repeat(face_planes(mesh)[:, None], 3, axis=1)
-    return np.concatenate([mesh.vertices[mesh.faces], planes], axis=2).reshape(-1, 7)
+def face_corners(mesh: CleanMesh, out: np.ndarray | None = None) -> np.ndarray:
+    """The faces' corners with their face's plane (3 F, 7), float32, written into ``out``
+    where given (as :func:`edge_quads`)."""
+    out = np.empty((3 * len(mesh.faces), 7), np.float32) if out is None else out
+    corners = out.reshape(-1, 3, 7)
+    corners[..., 0:3] = mesh.vertices[mesh.faces]
+    corners[..., 3:7] = face_planes(mesh)[:, None]
+    return out
 
 
 def light_vector(light: Light) -> np.ndarray:
@@ -129,12 +137,15 @@ class GpuVolumes:
             [i for i, (m, s) in enumerate(zip(meshes, single)) if s == one and len(m.faces)]
             for one in (True, False))
         self.edge_meshes = [edge_faces(m) for m in closed]
-        self.edges = VertexArray(_stack([edge_quads(m) for m in closed], 15), EDGE_LAYOUT)
-        self.faces = VertexArray(_stack([face_corners(m) for m in closed], 7), FACE_LAYOUT)
-        self.polygons = VertexArray(_stack([face_corners(m) for m in open_], 7), FACE_LAYOUT)
         self.edge_ranges = _ranges([6 * len(e[0]) for e in self.edge_meshes])
         self.face_ranges = _ranges([3 * len(m.faces) for m in closed])
         self.polygon_ranges = _ranges([3 * len(m.faces) for m in open_])
+        self.edges = VertexArray(_interleaved(closed, self.edge_ranges, 15, edge_quads),
+                                 EDGE_LAYOUT)
+        self.faces = VertexArray(_interleaved(closed, self.face_ranges, 7, face_corners),
+                                 FACE_LAYOUT)
+        self.polygons = VertexArray(_interleaved(open_, self.polygon_ranges, 7, face_corners),
+                                    FACE_LAYOUT)
         self.edge_program = _program("sv_edge.vert.glsl")
         self.cap_program = _program("sv_cap.vert.glsl")
         # cull reads the receivers' grid in the per-triangle volumes' geometry shader; the
@@ -271,8 +282,14 @@ class GpuVolumes:
             resource.release()
 
 
-def _stack(blocks: list[np.ndarray], width: int) -> np.ndarray:
-    return np.concatenate(blocks) if blocks else np.zeros((0, width), np.float32)
+def _interleaved(meshes: list[CleanMesh], ranges: list[PartRange], width: int,
+                 write) -> np.ndarray:
+    """One float32 buffer of the meshes' vertices, each mesh's written in place at its range
+    by ``write(mesh, out)``: no mesh's block is made apart and copied in."""
+    out = np.empty((sum(r.count for r in ranges), width), np.float32)
+    for mesh, r in zip(meshes, ranges):
+        write(mesh, out[r.first:r.first + r.count])
+    return out
 
 
 def _multi_draw(vertices: VertexArray, firsts: list[int], counts: list[int]) -> None:

@@ -11,7 +11,7 @@ import trimesh
 from helpers import DATA, ROOT, SCENE_FILE, cut_out, real_corpus, render_once
 
 from harness import config
-from harness.gl.shaders import Program
+from harness.gl.shaders import HARNESS_GLSL, Program
 from harness.scene import Light, build_scene
 from harness.technique import Frame, reset_gl_state
 from techniques.sv import sv_cpu
@@ -51,7 +51,7 @@ STAGE_DIFFERENCES = {
     ("crowd", "alpha-zpass"): (0, 1),
     ("crowd", "alpha-max-zpass"): (0, 1),
 }
-PASS_THROUGH = DATA / "sv_passthrough.geom.glsl"
+PASS_THROUGH = HARNESS_GLSL / "pass_through.geom.glsl"
 
 
 def _render(frame: Frame, params: dict, oracle: bool = False):

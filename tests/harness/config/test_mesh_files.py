@@ -246,10 +246,11 @@ def test_degenerate_triangles_among_good_ones_are_dropped_and_counted(tmp_path, 
         overrides={})
     from harness.run.manifest import _meshes
 
-    assert _meshes(plan.scenes["s"]) == [{"path": "m.obj", "triangles": 1, "parts": 1,
-                                          "open_parts": 1, "degenerate_dropped": 2,
-                                              "skipped": {}}]
-    json.dumps(_meshes(plan.scenes["s"]))  # as the manifest stores it
+    (_, config, source), = plan.described()
+    assert _meshes(config, source) == [{"path": "m.obj", "triangles": 1, "parts": 1,
+                                        "open_parts": 1, "degenerate_dropped": 2,
+                                        "skipped": {}}]
+    json.dumps(_meshes(config, source))  # as the manifest stores it
 
 
 @pytest.mark.parametrize("obj", [
