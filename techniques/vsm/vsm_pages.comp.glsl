@@ -27,9 +27,12 @@ uniform int boxes;
 uniform vec3 box_low[MAX_BOXES];
 uniform vec3 box_high[MAX_BOXES];
 
+// A count over every level, not a loop down from the last that each entry leaves at its own
+// level: llvmpipe (Mesa 22) then read levels[k] of the last level as zeros (pages 0), so the
+// one-page level's entry held page (-1, -1) and its pixels read no depth (all lit).
 int level_of(int index) {
-    int k = level_count - 1;
-    while (index < levels[k].grid.w) --k;
+    int k = 0;
+    for (int j = 1; j < level_count; ++j) k += int(index >= levels[j].grid.w);
     return k;
 }
 

@@ -139,6 +139,34 @@ def test_a_full_pool_coarsens_until_the_pages_fit(gl_context, scene_at):
     assert certain <= found <= possible
 
 
+@pytest.mark.parametrize("scene_name, size", [("box_plane", 64), ("sphere_plane", 96)])
+def test_every_requested_page_holds_its_own_page_down_to_the_one_page_mip(
+        scene_name, size, gl_context, scene_at):
+    """At the defaults, box_plane at 64 x 64 (directional) and sphere_plane at 96 x 96 (spot)
+    request pages of the last two mips (2 x 2 pages and one page) together: after a frame
+    every requested entry holds a tile and the global page its table place names
+    (gpu_pages' index arithmetic in NumPy), the one-page mip's included, and every held entry
+    is requested. Catches the level of an entry found by a loop down from the last level that
+    each entry leaves at its own (llvmpipe then read the last level as zeros when entries of
+    several levels shared a work group: the one-page mip's entry held page (-1, -1) and its
+    pixels were all lit)."""
+    frame = Frame(scene_at(scene_name, size))
+    try:
+        _, technique = run(frame)
+        found = gpu_pages(technique)
+        table, requested = technique.pages.table(), technique.pages.requested()
+        levels = technique.levels
+        technique.release()
+    finally:
+        frame.release()
+    last = levels.count - 1
+    assert {last - 1, last} <= {k for k, _, _ in found}, "the view should use both last mips"
+    assert set(np.flatnonzero(table[:, 0] >= 0)) == set(np.flatnonzero(requested))
+    held = {(int(np.searchsorted(levels.bases, index, side="right") - 1),
+             int(table[index, 1]), int(table[index, 2])) for index in np.flatnonzero(requested)}
+    assert held == found, sorted(held ^ found)[:5]
+
+
 def levels_used(frame, technique) -> np.ndarray:
     """Each pixel's level by the float64 oracle, -1 where a float32 choice may differ."""
     levels, a = technique.levels, frame.arrays
