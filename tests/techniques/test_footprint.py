@@ -61,3 +61,27 @@ def test_texel_over_pixel_matches_the_pixels_corners_in_the_map(scene_name, res,
     assert columns["texels_per_pixel_median"] == pytest.approx(np.median(expected), rel=0.01)
     assert columns["texels_per_pixel_p95"] == pytest.approx(np.percentile(expected, 95),
                                                             rel=0.01)
+
+
+def test_a_runs_frames_share_one_computation_and_another_camera_pass_gets_its_own(gl_context,
+                                                                                  scene_at):
+    """The columns are computed once per camera pass, light and maps (a run's frames repeat
+    them): the same map over castle at 64 and at 32 pixels (the same matrix, another camera
+    pass) gives each pass its own columns, those of a fresh computation, and a repeat gives the
+    same. Catches the memo keyed on the maps alone (the 32-pixel pass got the 64's columns)."""
+    frustum = fit_light(scene_at("castle", 64), 1024)
+    maps = [(frustum.view_proj, 1024)]
+    found = {}
+    for size in (64, 32, 64):
+        frame = Frame(scene_at("castle", size))
+        try:
+            first, again = texels_per_pixel(frame, maps), texels_per_pixel(frame, maps)
+            mask = receivers(frame)
+            ratio = texel_over_pixel(frame, np.repeat(frustum.view_proj[None], mask.sum(), 0),
+                                     np.full(int(mask.sum()), 1024.0))
+        finally:
+            frame.release()
+        assert first == again
+        assert first["texels_per_pixel_median"] == pytest.approx(np.median(ratio[np.isfinite(ratio)]))
+        found.setdefault(size, first)
+    assert found[64]["texels_per_pixel_median"] > 1.5 * found[32]["texels_per_pixel_median"]
