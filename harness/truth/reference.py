@@ -17,11 +17,8 @@ A scene Mitsuba cannot trace raises :class:`UntraceableSceneError`.
 
 from __future__ import annotations
 
-import glob
 import hashlib
 import math
-import os
-import re
 import time
 import warnings
 from dataclasses import dataclass
@@ -32,10 +29,11 @@ import numpy as np
 from ..config import cache_root, square_number
 from ..config.cache_entry import DamagedEntry, note_rebuilt, read_entry, write_entry
 from ..scene import BuiltScene
+from .variant import choose_variant, mitsuba_module
+from .cutouts import (CUTOUT_ATTRIBUTE, CUTOUT_VERSION, MAX_CUTOUT_HITS, cutout_ray_intersect,
+                      jit_variant)
 
 CACHE_VERSION = 6  # bump when the reference's definition changes; 6: checksums
-LLVM_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib64",
-               "/usr/lib", "/usr/local/lib")
 # Irradiance (directional) or intensity (spot, point) of pi makes the diffuse radiance
 # albedo * cos (/ r^2 for a positional light), the same scale the GL side shades with.
 LIGHT_POWER = math.pi
@@ -64,53 +62,6 @@ def cache_dir() -> Path:
     return cache_root() / "reference"
 
 
-def _llvm_libraries() -> list[tuple[int, str]]:
-    found = []
-    for folder in LLVM_SEARCH:
-        for path in glob.glob(os.path.join(folder, "libLLVM*.so*")):
-            m = re.search(r"libLLVM-?(\d+)", os.path.basename(path))
-            if m:
-                found.append((int(m.group(1)), path))
-    return sorted(found, reverse=True)
-
-
-def choose_variant() -> str:
-    """Pick a Mitsuba variant without loading one that would abort the process.
-
-    ``cuda_ad_rgb`` when Dr.Jit finds a CUDA device; else ``llvm_ad_rgb`` when an LLVM >= 16
-    library exists (Dr.Jit's LLVM backend aborts, uncatchably, with LLVM 15 or older), and
-    Dr.Jit is pointed at it; else ``scalar_rgb`` with a warning.
-    ``$SHADOWBENCH_MITSUBA_VARIANT`` forces a variant.
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    forced = os.environ.get("SHADOWBENCH_MITSUBA_VARIANT")
-    if forced:
-        return forced
-    if "cuda_ad_rgb" in mi.variants() and dr.has_backend(dr.JitBackend.CUDA):
-        return "cuda_ad_rgb"
-    chosen = os.environ.get("DRJIT_LIBLLVM_PATH")
-    libraries = _llvm_libraries()
-    if not chosen and libraries and libraries[0][0] >= 16:
-        os.environ["DRJIT_LIBLLVM_PATH"] = chosen = libraries[0][1]
-    version = next((v for v, p in libraries if p == chosen), None)
-    if chosen and (version is None or version >= 16) and "llvm_ad_rgb" in mi.variants():
-        return "llvm_ad_rgb"
-    warnings.warn(
-        "no LLVM >= 16 found (Debian: apt-get install libllvm19); the reference falls back to "
-        "Mitsuba's scalar_rgb variant, which is much slower", RuntimeWarning, stacklevel=2)
-    return "scalar_rgb"
-
-
-def mitsuba_module(variant: str):
-    import mitsuba as mi
-
-    if mi.variant() != variant:
-        mi.set_variant(variant)
-    return mi
-
-
 def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float,
           texcoords: np.ndarray | None = None, cutout: int | None = None):
     """A Mitsuba mesh of these triangles. In a scene with cut-outs (``cutout`` given: the
@@ -130,7 +81,7 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, albedo: float,
     params.update()
     if cutout is not None:
         column = np.full(len(faces), cutout, np.float32)
-        mesh.add_attribute(CUTOUT_ATTRIBUTE, 1, mi.Float(column) if _jit(mi) else
+        mesh.add_attribute(CUTOUT_ATTRIBUTE, 1, mi.Float(column) if jit_variant(mi) else
                            column.tolist())
     mesh.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                    "value": [albedo] * 3}}))
@@ -253,132 +204,12 @@ def _toward_light(mi, scene: BuiltScene, si):
         dr.opaque(mi.Point3f, (light.position - mitsuba_origin(scene)).tolist()))
 
 
-def _jit(mi) -> bool:
-    import drjit as dr
-
-    return dr.is_jit_v(mi.Float)
-
-
-# Cut-outs (issue 48). Mitsuba's ray_test treats every surface as opaque; in a scene with
-# alpha-tested surfaces a shadow ray, a camera ray and a coverage ray go on past each hit
-# where the sampling rule (harness/scene/alpha.py) says the surface is cut out, and stop at
-# the first hit where it is there. At most MAX_CUTOUT_HITS cut-out hits are passed: a shadow
-# ray that passes that many is counted as occluded (and counted: Reference.bounded_rays), a
-# camera ray sees the last.
-CUTOUT_ATTRIBUTE = "face_cutout"
-MAX_CUTOUT_HITS = 64
-CUTOUT_VERSION = 2  # bump when the cut-out loop's definition changes (opaque scenes: no key);
-# 2: camera and coverage rays go on past cut-outs too
-
-
 def cutout_ray_test(mi, mscene, scene: BuiltScene, ray, active):
     """(occluded, bounded): whether the shadow ``ray`` meets a surface that is there under the
     scene's cut-outs, and whether it was stopped at the bound (occluded then too)."""
     _, there, bounded = cutout_ray_intersect(
         mi, mscene, scene, ray, active, lambda si, _: _toward_light(mi, scene, si))
     return there | bounded, bounded
-
-
-def cutout_ray_intersect(mi, mscene, scene: BuiltScene, ray, active, onward,
-                         coherent: bool = False):
-    """(si, there, bounded): ``ray``'s first hit where the surface is there under the scene's
-    cut-outs, going on past each cut-out hit ``si`` along ``onward(si, ray)``; ``bounded``
-    where it passed MAX_CUTOUT_HITS cut-outs (``si`` then the last of them). A bounded Dr.Jit
-    loop of ray_intersect (``scalar_rgb``: a Python loop, the rule in NumPy, ``si`` None for
-    an inactive ray). Shadow rays and camera rays alike."""
-    import drjit as dr
-
-    flags = mi.RayFlags.Minimal | mi.RayFlags.UV
-    if not _jit(mi):
-        si = None
-        for _ in range(MAX_CUTOUT_HITS if active else 0):
-            si = mscene.ray_intersect(ray, flags, False)
-            if not si.is_valid():
-                return si, False, False
-            mask = int(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si))
-            if mask < 0 or scene.alpha_masks[mask].opaque(np.array([si.uv.x, si.uv.y])):
-                return si, True, False
-            ray = onward(si, ray)
-        return si, False, bool(active)
-    table = _cutout_table(mi, scene)
-
-    def going(ray, active, si, there, passed):
-        return active
-
-    def step(ray, active, si, there, passed):
-        found_si = mscene.ray_intersect(ray, flags, coherent, active)
-        found = active & found_si.is_valid()
-        si = dr.select(found, found_si, si)
-        mask = mi.Int32(si.shape.eval_attribute_1(CUTOUT_ATTRIBUTE, si, found))
-        cut = found & (mask >= 0)
-        is_there = found & (~cut | _there(mi, table, mask, si.uv, cut))
-        passed = dr.select(cut & ~is_there, passed + 1, passed)
-        active = cut & ~is_there & (passed < MAX_CUTOUT_HITS)
-        return (onward(si, ray), active, si, there | is_there, passed)
-
-    width = dr.width(active)
-    _, _, si, there, passed = dr.while_loop(
-        (ray, mi.Bool(active), dr.zeros(mi.SurfaceInteraction3f, width),
-         dr.zeros(mi.Bool, width), dr.zeros(mi.UInt32, width)), going, step)
-    return si, there, ~there & (passed >= MAX_CUTOUT_HITS)
-
-
-@dataclass
-class _CutoutTable:
-    """The scene's cut-out textures for Dr.Jit: texels of all masks, one after another
-    (values 0..255), and per mask its first texel, width, height and cutoff."""
-
-    texels: object
-    first: object
-    width: object
-    height: object
-    cutoff: object
-
-
-def _cutout_table(mi, scene: BuiltScene) -> _CutoutTable:
-    masks = scene.alpha_masks
-    sizes = [m.texture.size for m in masks]
-    return _CutoutTable(
-        mi.Float(np.concatenate([m.texture.ravel() for m in masks]).astype(np.float32)),
-        mi.UInt32(np.cumsum([0] + sizes[:-1]).astype(np.uint32)),
-        mi.Float64(np.array([m.texture.shape[1] for m in masks], np.float64)),
-        mi.Float64(np.array([m.texture.shape[0] for m in masks], np.float64)),
-        mi.Float64(np.array([m.cutoff for m in masks], np.float64)))
-
-
-def _there(mi, table: _CutoutTable, mask, uv, active):
-    """The sampling rule (harness/scene/alpha.py's sample_alpha, step for step in float64):
-    whether the cut-out ``mask`` is there (alpha >= cutoff) at ``uv``."""
-    import drjit as dr
-
-    index = mi.UInt32(dr.maximum(mask, 0))
-    w = dr.gather(mi.Float64, table.width, index, active)
-    h = dr.gather(mi.Float64, table.height, index, active)
-    x = mi.Float64(uv.x) * w - 0.5
-    y = mi.Float64(uv.y) * h - 0.5
-    x0, y0 = dr.floor(x), dr.floor(y)
-    fx, fy = x - x0, y - y0
-    c0, r0 = _wrapped(x0, w), _wrapped(y0, h)
-    c1 = dr.select(c0 + 1 >= w, 0, c0 + 1)
-    r1 = dr.select(r0 + 1 >= h, 0, r0 + 1)
-    first = dr.gather(mi.UInt32, table.first, index, active)
-    width = mi.UInt32(w)
-
-    def texel(r, c):
-        at = first + mi.UInt32(r) * width + mi.UInt32(c)
-        return mi.Float64(dr.gather(mi.Float, table.texels, at, active)) / 255.0
-
-    top = texel(r0, c0) * (1 - fx) + texel(r0, c1) * fx
-    bottom = texel(r1, c0) * (1 - fx) + texel(r1, c1) * fx
-    return top * (1 - fy) + bottom * fy >= dr.gather(mi.Float64, table.cutoff, index, active)
-
-
-def _wrapped(i, n):
-    """``i`` mod ``n`` in [0, n) for whole float64 numbers (NumPy's np.mod)."""
-    import drjit as dr
-
-    r = i - dr.floor(i / n) * n
-    return dr.select(r >= n, r - n, dr.select(r < 0, r + n, r))
 
 
 def film_position(mi, scene: BuiltScene, x, y, s, samples: int, seed: int):

@@ -67,6 +67,7 @@ def test_the_reference_port_of_the_rule_agrees_with_numpy():
     rows and columns, or reads another mask's texels."""
     import drjit as dr
 
+    from harness.truth import cutouts
     from harness.truth import reference as ref_mod
 
     mi = ref_mod.mitsuba_module("llvm_ad_rgb")
@@ -77,10 +78,10 @@ def test_the_reference_port_of_the_rule_agrees_with_numpy():
     class Scene:
         alpha_masks = masks
 
-    table = ref_mod._cutout_table(mi, Scene)
+    table = cutouts.cutout_table(mi, Scene)
     uv = rng.uniform(-2, 3, (4000, 2)).astype(np.float32)
     which = rng.integers(0, 2, len(uv))
-    got = np.asarray(ref_mod._there(mi, table, mi.Int32(which), mi.Point2f(uv[:, 0], uv[:, 1]),
+    got = np.asarray(cutouts.surface_there(mi, table, mi.Int32(which), mi.Point2f(uv[:, 0], uv[:, 1]),
                                     dr.full(mi.Bool, True, len(uv))))
     alpha = np.choose(which, [masks[0].alpha(uv), masks[1].alpha(uv)])
     cutoff = np.array([m.cutoff for m in masks])[which]

@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from harness.truth import reference as ref_mod
+from harness.truth import variant as variant_mod
 from harness.truth.reference import UntraceableSceneError, compute_reference
 from harness.scene import Light
 from harness.technique import Frame
@@ -205,18 +206,18 @@ def test_direct_image_is_lambert_times_visibility(scene_at, gl_context):
 
 def test_llvm_older_than_16_falls_back_to_scalar_with_warning(monkeypatch):
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
-    monkeypatch.setattr(ref_mod, "_llvm_libraries", lambda: [(15, "/usr/lib/libLLVM-15.so")])
+    monkeypatch.setattr(variant_mod, "_llvm_libraries", lambda: [(15, "/usr/lib/libLLVM-15.so")])
     with pytest.warns(RuntimeWarning, match="libllvm19"):
-        assert ref_mod.choose_variant() == "scalar_rgb"
+        assert variant_mod.choose_variant() == "scalar_rgb"
 
 
 def test_llvm_19_present_gives_llvm_variant(monkeypatch):
-    libraries = ref_mod._llvm_libraries()
+    libraries = variant_mod._llvm_libraries()
     if not libraries or libraries[0][0] < 16:
         pytest.fail("CI installs libllvm19 (Makefile); no LLVM >= 16 library was found")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert ref_mod.choose_variant() == "llvm_ad_rgb"
+        assert variant_mod.choose_variant() == "llvm_ad_rgb"
 
 
 def test_scalar_and_llvm_variants_agree(scene_at, tmp_path, monkeypatch):

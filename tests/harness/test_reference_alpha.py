@@ -15,6 +15,7 @@ from harness import config as cfg
 from harness.scene import build_scene, load_scene
 from harness.scene.alpha import pattern_texture, sample_alpha
 from harness.scene.transforms import look_at
+from harness.truth import cutouts
 from harness.truth import reference as ref_mod
 from harness.truth.reference import compute_reference
 
@@ -74,7 +75,7 @@ def sample_positions(mi, scene, seed: int = 0):
     """Film positions of every pixel's one sample (the reference's own sampler)."""
     lane = np.arange(scene.width * scene.height, dtype=np.uint32)
     x, y = lane % scene.width, lane // scene.width
-    if ref_mod._jit(mi):
+    if cutouts.jit_variant(mi):
         fx, fy = ref_mod.film_position(mi, scene, mi.UInt32(x), mi.UInt32(y),
                                        mi.UInt32(0 * lane), 1, seed)
         return (np.asarray(fx, np.float64).reshape(scene.height, scene.width),
@@ -144,7 +145,7 @@ def test_a_ray_at_the_bound_is_counted_occluded(variant, monkeypatch):
                         scene.light, scene.key, scene.source)
     free = compute_reference(scene, samples=1, use_cache=False, variant=variant)
     assert (free.visibility == 1).all() and free.bounded_rays == 0
-    monkeypatch.setattr(ref_mod, "MAX_CUTOUT_HITS", 1)
+    monkeypatch.setattr(cutouts, "MAX_CUTOUT_HITS", 1)
     with pytest.warns(RuntimeWarning, match="cut-out hits and were counted occluded"):
         bounded = compute_reference(scene, samples=1, use_cache=False, variant=variant)
     assert bounded.bounded_rays == (bounded.visibility == 0).sum() > 10
