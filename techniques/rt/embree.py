@@ -1,6 +1,6 @@
 """``backend: embree``: rt's rays on the CPU through Mitsuba's ``ray_test``, the tracer the
 reference uses (Embree in its CPU variants), on the scene the reference builds
-(``harness.truth.reference.mitsuba_scene_dict``: the same triangles, moved next to Mitsuba's origin).
+(``harness.truth.mitsuba_scene.mitsuba_scene_dict``: the same triangles, moved next to Mitsuba's origin).
 The G-buffer read-back, the trace and the upload of the mask are timed passes; the scene build
 is ``prepare``'s. The parts of objects the scene's motion moves are Mitsuba instances of shape
 groups (Embree's two levels): a frame moves them by their poses in the timed ``tlas`` pass,
