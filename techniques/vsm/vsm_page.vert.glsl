@@ -11,11 +11,7 @@ layout(std430, binding = 5) readonly buffer Jobs { ivec4 jobs[]; };
 uniform int pool_tiles;
 uniform float pool_res;  // texels per side of the pool
 out gl_PerVertex { vec4 gl_Position; float gl_ClipDistance[4]; };
-#ifdef ALPHA_TEST
-layout(location = 1) in vec3 cutout;  // u, v, the cut-out's index (-1: opaque)
-out vec2 uv;
-flat out int mask;
-#endif
+#include "cutout_vertex.glsl"
 
 void main() {
     ivec4 job = jobs[gl_BaseInstanceARB];
@@ -30,8 +26,5 @@ void main() {
     float tile_size = 2.0 * float(page_size) / pool_res;
     vec2 tile_low = -1.0 + vec2(job.w % pool_tiles, job.w / pool_tiles) * tile_size;
     gl_Position = vec4(from_low * (tile_size / size) + tile_low * clip.w, clip.z, clip.w);
-#ifdef ALPHA_TEST
-    uv = cutout.xy;
-    mask = int(cutout.z);
-#endif
+    pass_cutout();
 }
