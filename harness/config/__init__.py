@@ -15,7 +15,8 @@ from .experiment_schema import (Experiment, Grid, ReferenceSettings, Scalar, Sce
                                 load_experiment, with_timing)
 from .limits import (DEFAULT_TRIANGLE_BUDGET, MAX_COORDINATE, MAX_DEPTH_RATIO, MAX_RUNS, MIN_FOV,
                      NAME_PATTERN)
-from .field_types import Coordinate, FieldOfView, Size, SquareInt, Strict, Vec3, square_number
+from .field_types import (Coordinate, FieldOfView, Size, SquareInt, Strict, Vec3, power_of_two,
+                          square_number)
 from .alpha_files import (MAX_TEXTURE_SIDE, PATTERNS, Alpha, read_alpha_texture,
                           resolve_texture_path)
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
@@ -41,5 +42,5 @@ __all__ = [
     "Strict", "TriangleCount", "TypesAsWritten", "Vec3",
     "cache_root", "check_name", "check_resolution", "check_scenes", "key_error", "line_of",
     "load_experiment", "load_scenes", "mesh_parts", "read_yaml", "resolve_mesh_path", "shipped",
-    "square_number", "validation_error", "with_timing",
+    "power_of_two", "square_number", "validation_error", "with_timing",
 ]

@@ -37,6 +37,14 @@ def square_number(value: int) -> int:
 SquareInt = Annotated[int, AfterValidator(square_number)]
 
 
+def power_of_two(value: int) -> int:
+    """Validate a size that halves evenly down to 1 (a grid, a tile, a virtual map); a Params
+    model takes it as ``field_validator(name)(power_of_two)``."""
+    if value & (value - 1):
+        raise ValueError(f"must be a power of two, got {value}")
+    return value
+
+
 
 class Strict(TypesAsWritten):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)

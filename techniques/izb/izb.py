@@ -10,6 +10,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import Field, ValidationInfo, field_validator
 
+from harness.config import power_of_two
 from harness.gl.gbuffer import GBuffer
 from harness.gl.shaders import ComputeProgram, Program
 from harness.scene.transforms import fit_light
@@ -127,7 +128,8 @@ class IrregularZBuffer(Technique):
     ``surface: raster``'s camera passes are the harness's G-buffer pass, so its samples see
     the surfaces the frame's G-buffer sees.
 
-    Point lights are declined (one grid covers one frustum). llvmpipe ends an invocation's loops after 65535 iterations in all, so a
+    Point lights are declined (one grid covers one frustum). llvmpipe ends an invocation's
+    loops after 65535 iterations in all, so a
     fragment tests at most that many samples of its list: where the light sees many samples in
     one texel (terrain_long's far field: 185,299 at 512 x 512 with 16 samples and res 512) the
     tail is left lit; such lists are counted (``lists_over_limit``) and the run warns. List
@@ -177,12 +179,7 @@ class IrregularZBuffer(Technique):
         fit: Literal["plain", "view"] = "view"
         budget_mib: int = Field(256, ge=1, le=4096)
 
-        @field_validator("res")
-        @classmethod
-        def _power_of_two(cls, value: int) -> int:
-            if value & (value - 1):
-                raise ValueError(f"must be a power of two, got {value}")
-            return value
+        _res = field_validator("res")(power_of_two)
 
         @field_validator("pattern")
         @classmethod

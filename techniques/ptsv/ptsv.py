@@ -10,6 +10,7 @@ import numpy as np
 from OpenGL import GL
 from pydantic import Field, field_validator
 
+from harness.config import power_of_two
 from harness.technique import AlphaPolicy, Frame, ShadowOutput, Technique, TechniqueParams
 from harness.scene.transforms import box_corners
 
@@ -132,12 +133,7 @@ class PerTriangleShadowVolumes(Technique):
         quads: bool = True
         alpha: AlphaPolicy = "decline"
 
-        @field_validator("tile")
-        @classmethod
-        def _power_of_two(cls, value: int) -> int:
-            if value & (value - 1):
-                raise ValueError(f"must be a power of two, got {value}")
-            return value
+        _tile = field_validator("tile")(power_of_two)
 
     def prepare(self, frame: Frame) -> None:
         p = self.params

@@ -12,6 +12,7 @@ from OpenGL import GL
 from pydantic import Field, field_validator
 from pydantic_core.core_schema import ValidationInfo
 
+from harness.config import power_of_two
 from harness.gl.geometry import cut_out_corners
 from harness.gl.shaders import ComputeProgram
 from harness.scene.transforms import box_corners
@@ -29,12 +30,6 @@ from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrie
 HERE = Path(__file__).parent
 MAX_POOL_TEXELS = 16384  # the pool is one square texture (GL_MAX_TEXTURE_SIZE on llvmpipe)
 PCF_REACH = 1.0  # texels a 3 x 3 percentage-closer read reaches from the point's texel
-
-
-def _power_of_two(value: int) -> int:
-    if value & (value - 1):
-        raise ValueError(f"must be a power of two, got {value}")
-    return value
 
 
 class VirtualShadowMap(Technique):
@@ -134,7 +129,7 @@ class VirtualShadowMap(Technique):
         bias_mode: BiasMode = "slope"
         normal_offset: float = Field(0.0, ge=0, le=MAX_TEXELS)
 
-        _virtual_res = field_validator("virtual_res")(_power_of_two)
+        _virtual_res = field_validator("virtual_res")(power_of_two)
 
         @field_validator("page")
         @classmethod
