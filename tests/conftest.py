@@ -151,3 +151,33 @@ def plugin_env(tmp_path_factory):
         return env
 
     return install
+
+
+@pytest.fixture(scope="session")
+def small_run_dir(tmp_path_factory, gl_context):
+    """``small_run_dir(copy_to)``: helpers.make_run_dir's folder (a real sweep: every technique
+    on two scenes, about 13 s), swept once for the whole session, the test workers included
+    (the first to ask sweeps it under a lock in the folder they share), and copied to
+    ``copy_to`` for each module that asks: each builds its own dashboard in its copy."""
+    import fcntl
+    import shutil
+
+    from helpers import make_run_dir
+
+    shared = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        shared = shared.parent  # the session's folder, which pytest-xdist's workers share
+    source = shared / "small-run" / "run"
+    with open(shared / "small-run.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (source.parent / "done").exists():
+            shutil.rmtree(source.parent, ignore_errors=True)
+            source.parent.mkdir()
+            make_run_dir(source)
+            (source.parent / "done").touch()
+
+    def copy(to: Path) -> Path:
+        shutil.copytree(source, to)
+        return to
+
+    return copy

@@ -15,34 +15,47 @@ from harness.truth.metrics import receives_light
 from .light_maps import CubeDepthMap, LightDepthMap, camera_rays
 
 
-def texel_over_pixel(frame: Frame, view_projs: np.ndarray, res: np.ndarray) -> np.ndarray:
-    """Per receiver pixel (the ``receivers`` mask's order), the side of the map texel it reads
-    over the side of the pixel, both taken on the receiver's plane: 1 / sqrt|det J|, J the
-    2 x 2 derivative of the map's texel position along the plane by window position
-    (the map texel's area over the pixel's footprint's, square-rooted: below 1 the map has
-    finer texels than the view's pixels, above 1 coarser). ``view_projs`` (N, 4, 4) world ->
-    clip and ``res`` (N,) texels per side of the map each pixel reads."""
+def texel_over_pixel(frame: Frame, view_proj: np.ndarray, res: float,
+                     mask: np.ndarray | None = None) -> np.ndarray:
+    """Per pixel of ``mask`` (the ``receivers``' where None; row-major order), the side of the
+    map texel it reads over the side of the pixel, both taken on the receiver's plane:
+    1 / sqrt|det J|, J the 2 x 2 derivative of the map's texel position along the plane by
+    window position (the map texel's area over the pixel's footprint's, square-rooted: below 1
+    the map has finer texels than the view's pixels, above 1 coarser). ``view_proj`` the
+    map's world -> clip matrix, ``res`` its texels per side."""
+    along = _receiver_plane(frame, receivers(frame) if mask is None else mask)
+    return _ratio(along, np.asarray(view_proj, np.float64), float(res))
+
+
+def _receiver_plane(frame: Frame, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(point, d point / d x, d point / d y) of each pixel of ``mask``, in float64: the window
+    derivatives along the receiver's plane (the ray's hit moves with the ray). What every map
+    a pixel might read shares."""
     a = frame.arrays
-    mask = receivers(frame)
     point = a.position[mask].astype(np.float64)
     normal = a.normal[mask].astype(np.float64)
     rows, cols = np.nonzero(mask)
     rays = camera_rays(frame)
-    origin = rays["camera_position"]
     x = cols + 0.5
     y = frame.height - 1 - rows + 0.5
     ray = rays["camera_ray"] + x[:, None] * rays["camera_ray_dx"] + y[:, None] * rays["camera_ray_dy"]
-    facing = (normal * ray).sum(1)
-    t = (normal * (point - origin)).sum(1) / facing
-    # d point / d window along the receiver plane (the ray's hit moves with the ray)
+    facing = np.einsum("nk,nk->n", normal, ray)
+    t = np.einsum("nk,nk->n", normal, point - rays["camera_position"]) / facing
     along = [t[:, None] * (d - ((normal @ d) / facing)[:, None] * ray)
              for d in (rays["camera_ray_dx"], rays["camera_ray_dy"])]
-    clip = np.einsum("nij,nj->ni", view_projs, np.c_[point, np.ones(len(point))])
+    return point, along[0], along[1]
+
+
+def _ratio(plane: tuple[np.ndarray, np.ndarray, np.ndarray], view_proj: np.ndarray,
+           res: float) -> np.ndarray:
+    point, along_x, along_y = plane
+    clip = point @ view_proj[:, :3].T + view_proj[:, 3]
     scale = 0.5 * res / clip[:, 3]
-    rows_xy = [(view_projs[:, i, :3] - (clip[:, i] / clip[:, 3])[:, None] * view_projs[:, 3, :3])
+    # d (texel x, texel y) / d point: the perspective division's derivative, row by row
+    rows_xy = [(view_proj[i, :3] - (clip[:, i] / clip[:, 3])[:, None] * view_proj[3, :3])
                * scale[:, None] for i in (0, 1)]
-    jacobian = np.array([[(r * d).sum(1) for d in along] for r in rows_xy])  # (2, 2, N)
-    det = jacobian[0, 0] * jacobian[1, 1] - jacobian[0, 1] * jacobian[1, 0]
+    j = [[np.einsum("nk,nk->n", r, d) for d in (along_x, along_y)] for r in rows_xy]
+    det = j[0][0] * j[1][1] - j[0][1] * j[1][0]
     with np.errstate(divide="ignore", invalid="ignore"):
         return 1.0 / np.sqrt(np.abs(det))
 
@@ -85,8 +98,12 @@ def _texels_per_pixel(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
                       choice: np.ndarray | None) -> dict:
     mask = receivers(frame)
     index = np.zeros(int(mask.sum()), np.int64) if choice is None else choice[mask].astype(np.int64)
-    ratio = texel_over_pixel(frame, matrices[np.maximum(index, 0)], sizes[np.maximum(index, 0)])
-    ratio = ratio[(index >= 0) & np.isfinite(ratio)]
+    point, along_x, along_y = _receiver_plane(frame, mask)
+    ratio = np.full(len(index), np.nan)
+    for k in np.unique(index[index >= 0]):  # one map at a time: each its own matrix
+        pick = index == k
+        ratio[pick] = _ratio((point[pick], along_x[pick], along_y[pick]), matrices[k], sizes[k])
+    ratio = ratio[np.isfinite(ratio)]
     if not ratio.size:
         return {"texels_per_pixel_median": None, "texels_per_pixel_p95": None}
     return {"texels_per_pixel_median": float(np.median(ratio)),

@@ -50,8 +50,7 @@ def test_texel_over_pixel_matches_the_pixels_corners_in_the_map(scene_name, res,
         frustum = fit_light(frame.scene, res)
         mask = receivers(frame)
         rows, cols = np.nonzero(mask)
-        ours = texel_over_pixel(frame, np.repeat(frustum.view_proj[None], len(rows), 0),
-                                np.full(len(rows), float(res)))
+        ours = texel_over_pixel(frame, frustum.view_proj, res)
         expected = corner_ratio(frame, frustum.view_proj, res, rows, cols)
         columns = texels_per_pixel(frame, [(frustum.view_proj, res)])
     finally:
@@ -76,9 +75,7 @@ def test_a_runs_frames_share_one_computation_and_another_camera_pass_gets_its_ow
         frame = Frame(scene_at("castle", size))
         try:
             first, again = texels_per_pixel(frame, maps), texels_per_pixel(frame, maps)
-            mask = receivers(frame)
-            ratio = texel_over_pixel(frame, np.repeat(frustum.view_proj[None], mask.sum(), 0),
-                                     np.full(int(mask.sum()), 1024.0))
+            ratio = texel_over_pixel(frame, frustum.view_proj, 1024)
         finally:
             frame.release()
         assert first == again

@@ -22,11 +22,9 @@ LOAD_TIMES = """
 
 
 @pytest.fixture(scope="module")
-def page(tmp_path_factory, gl_context):
+def page(tmp_path_factory, small_run_dir):
     """A real run's page, with images shown at 64 px so the 96 px runs also get native files."""
-    from helpers import make_run_dir
-
-    run = make_run_dir(tmp_path_factory.mktemp("browser") / "run")
+    run = small_run_dir(tmp_path_factory.mktemp("browser") / "run")
     return report.build_report(run, shown_px=64)
 
 

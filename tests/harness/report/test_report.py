@@ -14,7 +14,7 @@ from harness.technique import registry
 from harness import results
 from harness.cli import main as shadowbench
 from harness.report import build_report, images, scale, stability
-from helpers import ROOT, SCALE_SIZES, SCALE_TIMES, hostile_folder, make_run_dir, scale_folder
+from helpers import ROOT, SCALE_SIZES, SCALE_TIMES, hostile_folder, scale_folder
 
 
 
@@ -171,8 +171,8 @@ def test_report_on_a_folder_without_results_is_one_line(tmp_path, capsys):
 # --- a page built from a real run ---------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory, gl_context):
-    return make_run_dir(tmp_path_factory.mktemp("dashboard") / "run")
+def run_dir(tmp_path_factory, small_run_dir):
+    return small_run_dir(tmp_path_factory.mktemp("dashboard") / "run")
 
 
 @pytest.fixture(scope="module")
