@@ -1,58 +1,30 @@
-"""What alpha-tested casters cost sm and rt (issue 48): the foliage family's leaf cards cut out
-by a leaf-shaped texture against the same triangles opaque, timed in one run.
+"""What alpha-tested casters cost sm and rt (issue 48: at most 1.5x and 2x): the ``cards``
+family (leaf cards cut out by its leaf texture) against the same triangles opaque, timed in one
+run.
 
-    .venv/bin/python benchmarks/alpha_cost.py [--scene foliage@1e5] [--size 512]
+    .venv/bin/python benchmarks/alpha_cost.py [--scene cards@1e5] [--size 512]
         [--runs 'sm;rt;rt:{"backend": "embree"}'] [--frames 5]
 
-Until the ``cards`` family (issue 48's scene side) lands, the cards are foliage's: every
-tree's leaf quads get texture coordinates (the quad's corners at the texture's corners) and one
-cut-out, a 64 x 64 ellipse filling the texture (about 79 % of each card kept); trunks sample
-the ellipse's opaque centre. Each run is prepared on both scenes and their frames (cost:
-dynamic, update and render, one warm-up) alternate round by round, so load hits both alike;
-printed: each run's median time_ms and passes with and without the cut-outs, their ratio, and
-the load average. Timings on llvmpipe rank CPU cost, not GPU time.
+The opaque twin is reference_alpha.opaque_twin's: the same BuiltScene with every cut-out taken
+away. Each run is prepared on both scenes and their frames (cost: dynamic, update and render,
+one warm-up) alternate round by round, so load hits both alike; printed: each run's median
+time_ms and passes with and without the cut-outs, their ratio, and the load average. Timings on
+llvmpipe rank CPU cost, not GPU time.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import statistics
 
-import numpy as np
-
-
-def leaf_texture(texels: int = 64) -> np.ndarray:
-    centre = (np.arange(texels) + 0.5) / texels - 0.5
-    inside = (centre[:, None] / 0.5) ** 2 + (centre[None, :] / 0.5) ** 2 <= 1.0
-    return np.where(inside, 255, 0).astype(np.uint8)
-
-
-def with_cutouts(scene):
-    """``scene`` (foliage) with every tree's leaf cards cut out by :func:`leaf_texture`."""
-    from harness.scene import families
-    from harness.scene.alpha import AlphaMask
-
-    mask = AlphaMask(leaf_texture(), 0.5, "benchmarks/alpha_cost.py leaf")
-    # foliage's cards are quads (c0, c1, c2), (c0, c2, c3) after the trunk's faces
-    quad = np.array([[[0, 1], [1, 1], [1, 0]], [[0, 1], [1, 0], [0, 0]]], np.float32)
-    parts = []
-    for part in scene.parts:
-        if ":tree" not in part.name:
-            parts.append(part)
-            continue
-        trunk = 2 * families.TRUNK_SECTIONS
-        uv = np.full((len(part.faces), 3, 2), 0.5, np.float32)
-        uv[trunk:] = quad[np.arange(len(part.faces) - trunk) % 2]
-        parts.append(dataclasses.replace(part, texcoords=uv, alpha=mask))
-    return dataclasses.replace(scene, parts=parts, key=f"{scene.key}-alpha-{mask.digest}")
+from reference_alpha import opaque_twin
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="foliage@1e5")
+    parser.add_argument("--scene", default="cards@1e5")
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--runs", default="sm;rt")
     parser.add_argument("--frames", type=int, default=5)
@@ -64,8 +36,8 @@ def main() -> None:
     from OpenGL import GL
 
     get_context()
-    opaque = load_scene(args.scene).with_resolution(args.size, args.size)
-    cut = with_cutouts(opaque)
+    cut = load_scene(args.scene).with_resolution(args.size, args.size)
+    opaque = opaque_twin(cut)
     print(f"{args.scene} at {args.size}^2: {len(cut.triangles):,} triangles, "
           f"{int((cut.face_mask >= 0).sum()):,} alpha-tested")
     frames = {"opaque": Frame(opaque), "alpha": Frame(cut)}
