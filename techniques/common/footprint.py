@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import hashlib
 import weakref
-from typing import Sequence
+from collections import OrderedDict
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -68,30 +69,45 @@ def receivers(frame: Frame) -> np.ndarray:
 
 
 def texels_per_pixel(frame: Frame, maps: Sequence[tuple[np.ndarray, float]],
-                     choice: np.ndarray | None = None) -> dict:
+                     choice: np.ndarray | Callable[[], np.ndarray] | None = None, *,
+                     choice_key: bytes | None = None) -> dict:
     """The ``texels_per_pixel_median`` and ``texels_per_pixel_p95`` columns over the receivers
     (texel_over_pixel): ``maps`` the (world -> clip matrix, texels per side) of each map the
     technique reads, ``choice`` (H, W) the map index each pixel reads (all the first where
-    None; a pixel with a negative index is left out). None where no pixel counts. Computed
-    once for a camera pass, light and set of maps: a run's frames repeat it (0.15 s a frame at
-    512 x 512, as long as sm's frame)."""
+    None; a pixel with a negative index is left out), or a function giving it, called only
+    when the columns are not at hand, with ``choice_key`` naming what it depends on besides
+    the maps and the camera pass. None where no pixel counts.
+
+    Computed once for a camera pass, light, set of maps and choice (0.05 to 0.15 s at
+    512 x 512, as long as sm's frame): the frames of a run, and of the runs an interleaved
+    batch takes turns with, find their columns among the last ``RECENT``."""
     matrices = np.array([m for m, _ in maps], np.float64)
     sizes = np.array([r for _, r in maps], np.float64)
     light = frame.scene.light
-    key = hashlib.sha256(b"".join(np.ascontiguousarray(a, np.float64).tobytes() for a in (
-        matrices, sizes, light.direction if light.direction is not None else (),
-        light.position if light.position is not None else ()))
-        + (b"" if choice is None else np.ascontiguousarray(choice).tobytes())).digest()
-    arrays, last_key, columns = _last
-    if arrays() is frame.arrays and last_key == key:
-        return dict(columns)
-    columns = _texels_per_pixel(frame, matrices, sizes, choice)
-    _last[:] = [weakref.ref(frame.arrays), key, columns]
+    if callable(choice):
+        named = choice_key
+    else:
+        named = b"" if choice is None else np.ascontiguousarray(choice).tobytes()
+    key = (id(frame.arrays), hashlib.sha256(b"".join(
+        np.ascontiguousarray(a, np.float64).tobytes() for a in (
+            matrices, sizes, light.direction if light.direction is not None else (),
+            light.position if light.position is not None else ())) + named).digest())
+    found = _recent.get(key)
+    if found is not None and found[0]() is frame.arrays:
+        _recent.move_to_end(key)
+        return dict(found[1])
+    columns = _texels_per_pixel(frame, matrices, sizes, choice() if callable(choice) else choice)
+    _recent[key] = (weakref.ref(frame.arrays), columns)
+    while len(_recent) > RECENT:
+        _recent.popitem(last=False)
     return dict(columns)
 
 
-# the last camera pass's (weakly: a released frame's arrays go), its key, its columns
-_last: list = [lambda: None, b"", {}]
+# (camera pass, maps) -> (the pass's arrays, weakly: a released frame's go; its columns). A
+# sweep's interleaved batch holds up to 16 runs, each its own maps; the last entry alone
+# (before) was another run's at every frame: make bench spent 30 % of its time here
+RECENT = 64
+_recent: OrderedDict = OrderedDict()
 
 
 def _texels_per_pixel(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,

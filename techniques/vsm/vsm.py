@@ -307,7 +307,9 @@ class VirtualShadowMap(Technique):
         c, levels = self.counts, self.levels
         maps = [(proj @ view, res) for view, proj, res in zip(levels.views, levels.projs,
                                                               levels.res)]
-        return {**texels_per_pixel(frame, maps, self.level_map(frame)),
+        # the level map depends on the levels (in maps), the camera pass and the coarsening
+        return {**texels_per_pixel(frame, maps, lambda: self.level_map(frame),
+                                   choice_key=str(c.coarsened).encode()),
                 "pages_marked": c.marked, "pages_allocated": c.allocated,
                 "pages_rendered": c.rendered, "cache_hits": c.hits,
                 "pages_coarsened": c.coarsened, "page_draws": c.draws,

@@ -88,14 +88,18 @@ def test_the_estimate_from_a_folder_of_the_same_runs_is_its_wall_time(small_run,
     assert int(found[1] or 0) * 60 + int(found[2]) == round(wall)
 
 
-def test_default_experiment_plans_711_runs(capsys):
-    """experiments/default.yaml (make bench) plans 711 runs (450 before the real corpus's 36,
-    486 before rt's 40, 526 before ptsv's 25, 551 before ptsv's full mask on architecture,
-    foliage and crowd, 554 before vsm's 52 and izb's 40, 646 before the five alpha-tested
-    scenes' 65, every technique at its defaults),
-    as README and the experiment say, with the built-ins alone installed. Catches a plan that
+def test_default_experiment_plans_563_runs(capsys):
+    """experiments/default.yaml (make bench) plans 563 runs, and experiments/curves.yaml (every
+    technique's curve on every scene, make bench's experiment until it outgrew its 8 minutes)
+    711 (450 before the real corpus's 36, 486 before rt's 40, 526 before ptsv's 25, 551
+    before ptsv's full mask on architecture, foliage and crowd, 554 before vsm's 52 and izb's
+    40, 646 before the five alpha-tested scenes' 65, every technique at its defaults), as
+    README and the experiments say, with the built-ins alone installed. Catches a plan that
     does not merge duplicate points (508 before the corpus)."""
+    code, text, _ = shadowbench(capsys, "plan", ROOT / "experiments" / "curves.yaml")
+    assert code == 0
+    assert text.splitlines()[0].startswith("711 runs (duplicate points merged) in 21 scenes")
     code, text, _ = shadowbench(capsys, "plan", ROOT / "experiments" / "default.yaml")
     assert code == 0
     print(text.splitlines()[0])
-    assert text.splitlines()[0].startswith("711 runs (duplicate points merged) in 21 scenes")
+    assert text.splitlines()[0].startswith("563 runs (duplicate points merged) in 21 scenes")
