@@ -150,3 +150,20 @@ def test_the_scale_view_draws_its_charts(browser, tmp_path, make_results):
     assert lines == 2
     assert "31,623 triangles" in browser.find_element("css selector", "table.crossovers").text
     assert not _errors(browser)
+
+
+def test_many_scenes_wrap_in_the_header_without_a_sideways_scroll(browser, tmp_path,
+                                                                  make_results):
+    """30 scenes with long names: their links wrap onto more header lines and the page never
+    scrolls sideways at 1400 px. Catches the links written with nothing between them (each
+    nowrap, so no place to break: make bench's 21 scenes ran past the window's edge)."""
+    runs = [{"scene": f"a_rather_long_scene_name_{i:02d}", "params": {"res": 512}}
+            for i in range(30)]
+    index = report.build_report(make_results(tmp_path / "run", runs))
+    _open(browser, index)
+    wide, shown, lines = browser.execute_script(
+        "const links = [...document.querySelectorAll('nav .scene-links a')];"
+        "return [document.documentElement.scrollWidth, window.innerWidth,"
+        " new Set(links.map(a => Math.round(a.getBoundingClientRect().top))).size]")
+    assert wide <= shown, (wide, shown)
+    assert lines >= 3
