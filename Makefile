@@ -28,19 +28,14 @@ $(STAMPS)/debs:
 # before the project took that name holds it as `shadowbench`: uninstalled first (only when its
 # entry points are this project's techniques, with the egg-info its editable install left in the
 # checkout), or every technique would be registered twice.
-# The project and its dev extras go in with uv (29 s on a fresh clone where pip took 58 s: make
-# test and make bench each have 8 minutes), their bytecode compiled as pip does (without it,
-# where PYTHONDONTWRITEBYTECODE is set, every process the tests start compiled pandas and scipy
-# again: the suite took 9 min 38 s instead of 7 min 19 s); pip where uv cannot (no network to
-# its downloads, an old platform), with the same pins from pyproject.toml.
 $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 	@test -x $(PY) || python3 -m venv $(VENV)
-	$(PY) -m pip install -q --upgrade pip uv
+	$(PY) -m pip install -q --upgrade pip
 	@if $(PY) -c "import importlib.metadata as m, sys; \
 	  sys.exit(not any(e.value.startswith('techniques.') for e in \
 	  m.distribution('shadowbench').entry_points.select(group='shadowbench.techniques')))" \
 	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; rm -rf shadowbench.egg-info; fi
-	$(VENV)/bin/uv pip install -q --compile-bytecode --python $(PY) -e '.[dev]' || $(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -e '.[dev]'
 	@touch $@
 
 # A technique of your own (a folder with its pyproject.toml, e.g. a copy of examples/plugin)
