@@ -70,7 +70,7 @@ def receivers(frame: Frame) -> np.ndarray:
 
 def texels_per_pixel(frame: Frame, maps: Sequence[tuple[np.ndarray, float]],
                      choice: np.ndarray | Callable[[], np.ndarray] | None = None, *,
-                     choice_key: bytes | None = None) -> dict:
+                     choice_key: bytes = b"") -> dict:
     """The ``texels_per_pixel_median`` and ``texels_per_pixel_p95`` columns over the receivers
     (texel_over_pixel): ``maps`` the (world -> clip matrix, texels per side) of each map the
     technique reads, ``choice`` (H, W) the map index each pixel reads (all the first where
