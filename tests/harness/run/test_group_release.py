@@ -36,11 +36,11 @@ def _mitsuba_scenes() -> int:
 def test_nothing_of_a_group_is_alive_when_the_next_begins(tmp_path, monkeypatch, gl_context):
     from harness import run
     from harness.gl.objects import live_objects, names_now
-    from harness.run import plan as plan_module
+    from harness.run import scene_set
     from harness.technique import Frame, Technique
 
     monkeypatch.setenv("SHADOWBENCH_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr(plan_module, "LARGE_SCENE", 0, raising=False)
+    monkeypatch.setattr(scene_set, "LARGE_SCENE", 0)
     monkeypatch.setattr(run.measure, "FOOTPRINTS", run.measure.Footprints())  # no other test's
     experiment = tmp_path / "e.yaml"
     experiment.write_text(yaml.safe_dump({

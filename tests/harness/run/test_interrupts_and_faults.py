@@ -383,7 +383,7 @@ def test_library_warnings_go_to_the_log_and_a_runs_own_into_its_row(tmp_path, gl
     from helpers import result_rows, small_run
 
     from harness.truth import metrics
-    from harness.run import plan as planning
+    from harness.run import scene_set as planning
 
     build = planning.build_scene
 
