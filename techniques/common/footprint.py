@@ -110,8 +110,16 @@ RECENT = 64
 _recent: OrderedDict = OrderedDict()
 
 
-def _texels_per_pixel(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
-                      choice: np.ndarray | None) -> dict:
+def texel_ratios(frame: Frame, maps: Sequence[tuple[np.ndarray, float]],
+                 choice: np.ndarray | None = None) -> np.ndarray:
+    """texel_over_pixel of every receiver in the map it reads (``maps`` and ``choice`` as
+    texels_per_pixel's), the finite ones: what the two columns summarise."""
+    return _texel_ratios(frame, np.array([m for m, _ in maps], np.float64),
+                         np.array([r for _, r in maps], np.float64), choice)
+
+
+def _texel_ratios(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
+                  choice: np.ndarray | None) -> np.ndarray:
     mask = receivers(frame)
     index = np.zeros(int(mask.sum()), np.int64) if choice is None else choice[mask].astype(np.int64)
     point, along_x, along_y = _receiver_plane(frame, mask)
@@ -119,7 +127,12 @@ def _texels_per_pixel(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
     for k in np.unique(index[index >= 0]):  # one map at a time: each its own matrix
         pick = index == k
         ratio[pick] = _ratio((point[pick], along_x[pick], along_y[pick]), matrices[k], sizes[k])
-    ratio = ratio[np.isfinite(ratio)]
+    return ratio[np.isfinite(ratio)]
+
+
+def _texels_per_pixel(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
+                      choice: np.ndarray | None) -> dict:
+    ratio = _texel_ratios(frame, matrices, sizes, choice)
     if not ratio.size:
         return {"texels_per_pixel_median": None, "texels_per_pixel_p95": None}
     return {"texels_per_pixel_median": float(np.median(ratio)),

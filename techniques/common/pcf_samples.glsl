@@ -36,8 +36,11 @@ uniform vec3 camera_ray;
 uniform vec3 camera_ray_dx;
 uniform vec3 camera_ray_dy;
 
-// A pixel seeing a plane edge-on covers an unbounded strip of the map; its region stops here.
-const float MAX_FOOTPRINT = 64.0;
+// A pixel seeing a plane edge-on covers an unbounded strip of the map; its region stops here
+// (a shader whose reads must stay within pages it marked defines a smaller one).
+#ifndef MAX_FOOTPRINT
+#define MAX_FOOTPRINT 64.0
+#endif
 
 float sample_test(vec2 texel, float depth, float bias, float window_bias);
 

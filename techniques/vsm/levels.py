@@ -110,10 +110,12 @@ def pixel_angle(camera_proj: np.ndarray, height: int) -> float:
 
 
 def texel_world(levels: Levels, k: int, points: np.ndarray) -> np.ndarray:
-    """The longer world side of level k's texel at ``points`` (N, 3): 2 w / (projection scale
-    x texels), w the clip w (1 orthographic, the light depth perspective)."""
+    """The world side of the square of level k's texel's area at ``points`` (N, 3): 2 w /
+    (projection scale x texels), w the clip w (1 orthographic, the light depth perspective),
+    the scale the geometric mean of the two axes' (a frustum fitted to the scene may give its
+    texels two sides)."""
     clip = np.c_[points, np.ones(len(points))] @ (levels.projs[k] @ levels.views[k]).T
-    scale = min(levels.projs[k][0, 0], levels.projs[k][1, 1])
+    scale = np.sqrt(levels.projs[k][0, 0] * levels.projs[k][1, 1])
     return 2.0 * clip[:, 3] / (scale * levels.res[k])
 
 
@@ -124,22 +126,49 @@ def map_texels(levels: Levels, k: np.ndarray, points: np.ndarray) -> np.ndarray:
     return (clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * levels.res[k][:, None]
 
 
-def natural_level(levels: Levels, points: np.ndarray, camera_position: np.ndarray,
+def light_vector(light) -> np.ndarray:
+    """vsm_levels.glsl's ``light_vector``: (position, 1) for a spot light, (toward the light, 0)
+    for a directional one."""
+    if light.type == "directional":
+        return np.append(-np.asarray(light.direction, np.float64), 0.0)
+    return np.append(np.asarray(light.position, np.float64), 1.0)
+
+
+# How far the receiver's slant moves a pixel's level (vsm_levels.glsl's SLANT_RANGE): one level
+# finer at most, three coarser. A receiver almost edge-on to the light (a sphere's terminator)
+# would otherwise take ever finer pages for a sliver of pixels (instancing's spheres needed
+# more than the pool); one edge-on to the camera, the coarsest level.
+SLANT_RANGE = (0.5, 8.0)
+
+
+def natural_level(levels: Levels, points: np.ndarray, normals: np.ndarray,
+                  camera_position: np.ndarray, light: np.ndarray,
                   angle: float) -> tuple[np.ndarray, np.ndarray]:
-    """The level whose texel is the largest not above the pixel's footprint (distance x
-    ``angle``): floor(log2(footprint / level 0's texel)), within the levels; and that log2
-    (to tell how near a point is to the next level)."""
-    footprint = np.linalg.norm(points - camera_position, axis=1) * angle
+    """The level whose texel is the largest not above the pixel's footprint, both taken on the
+    receiver's plane: floor(log2(footprint / level 0's texel)), within the levels; and that
+    log2 (to tell how near a point is to the next level). On the plane of normal n a pixel at
+    distance d covers (d ``angle``)^2 / |n.v| and a texel of side t (t^2 / |n.l|, v and l the
+    directions to the camera and to ``light``, light_vector's form), so a texel is at most a
+    pixel across on the receiver where t <= d ``angle`` sqrt(|n.l| / |n.v|)."""
+    to_eye = camera_position - points
+    to_eye /= np.linalg.norm(to_eye, axis=1, keepdims=True)
+    to_light = np.broadcast_to(light[:3], points.shape) - light[3] * points
+    to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
+    facing_eye = np.maximum(np.abs(np.einsum("nk,nk->n", normals, to_eye)), 1e-6)
+    slant = np.clip(np.sqrt(np.abs(np.einsum("nk,nk->n", normals, to_light)) / facing_eye),
+                    *SLANT_RANGE)
+    footprint = np.linalg.norm(points - camera_position, axis=1) * angle * slant
     ratio = np.log2(footprint / texel_world(levels, 0, points))
     return np.clip(np.floor(ratio), 0, levels.count - 1).astype(np.int64), ratio
 
 
-def choose_levels(levels: Levels, points: np.ndarray, camera_position: np.ndarray,
-                  angle: float, bias: int = 0) -> np.ndarray:
+def choose_levels(levels: Levels, points: np.ndarray, normals: np.ndarray,
+                  camera_position: np.ndarray, light: np.ndarray, angle: float,
+                  bias: int = 0) -> np.ndarray:
     """vsm_levels.glsl's choice per point: the natural level plus ``bias`` (coarsening), then
     coarser while the point lies within a page of a nested level's window edge."""
-    k = np.minimum(natural_level(levels, points, camera_position, angle)[0] + bias,
-                   levels.count - 1)
+    k = np.minimum(natural_level(levels, points, normals, camera_position, light, angle)[0]
+                   + bias, levels.count - 1)
     for _ in range(levels.nested):
         texel = map_texels(levels, k, points)
         res = levels.res[k][:, None]

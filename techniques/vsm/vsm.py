@@ -23,13 +23,20 @@ from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUN
                                           MAX_TEXELS, BiasMode, Sampling, bias_uniforms,
                                           depth_precision, sampling_uniforms)
 
-from .levels import Levels, choose_levels, level_chain, pixel_angle, sequence_bounds, top_frustum
+from .levels import (Levels, choose_levels, level_chain, light_vector, pixel_angle,
+                     sequence_bounds, top_frustum)
 from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles,
                     spatial_order)
 
 HERE = Path(__file__).parent
 MAX_POOL_TEXELS = 16384  # the pool is one square texture (GL_MAX_TEXTURE_SIZE on llvmpipe)
-PCF_REACH = 1.0  # texels a 3 x 3 percentage-closer read reaches from the point's texel
+# filter: pcf is Reeves et al.'s filter as pcf's defaults draw it, a 4 x 4 grid over half the
+# pixel's footprint in the level's map, at least a quarter texel; the region's side stops at
+# 2 PCF_REACH texels, so no read leaves the pages marking requested about the point
+PCF_GRID = 4
+PCF_RES_FACTOR = 0.5
+PCF_MIN_SIZE = 0.25
+PCF_REACH = 1.0  # texels
 
 
 class VirtualShadowMap(Technique):
@@ -45,8 +52,11 @@ class VirtualShadowMap(Technique):
 
     Each frame (all of it in ``render``, timed): page marking (vsm_mark.comp.glsl): every
     pixel whose visible side faces the light takes the level whose texel is the largest not
-    above its footprint (distance x pixel angle), so at most one texel per pixel across, and
-    requests the page of its texel (with ``filter: pcf`` the pages its 3 x 3 reads reach);
+    above its footprint, both on the receiver's plane (levels.natural_level: distance x pixel
+    angle x sqrt(|n.l| / |n.v|), the slant's factor within SLANT_RANGE), so about one texel
+    per pixel (0.5 to 1 but for the camera's off-axis pixels and the slant's limits), and
+    requests the page of its texel (with ``filter: pcf`` the pages its filter's reads reach,
+    PCF_REACH texels about it);
     allocation (vsm_pages.comp.glsl): if the requests need more tiles than are free, every
     pixel moves a level coarser and marks again until they fit (``pages_coarsened`` counts
     the levels); unrequested pages free their tiles to a ring on the GPU, requested ones take
@@ -54,8 +64,9 @@ class VirtualShadowMap(Technique):
     rendering: per job, the caster clusters (runs of triangles in Z order of their centroids,
     pages.spatial_order) whose box meets the page's column are drawn into its tile (one
     multi-draw of indirect commands made on the GPU); shading
-    (vsm_shading.frag.glsl): Williams' test, or 3 x 3 PCF across page borders, through the
-    page table, with shadow_map.glsl's bias in the level's texels.
+    (vsm_shading.frag.glsl): Williams' test, or percentage-closer filtering over the pixel's
+    footprint (4 x 4 reads over half of it, as pcf's defaults; across page borders), through
+    the page table, with shadow_map.glsl's bias in the level's texels.
 
     Caching (``cache: true``): a page keeps its depths while the light and the casters over it
     stay. ``update`` (the work for a changed light or geometry) drops every page's depths when
@@ -83,8 +94,9 @@ class VirtualShadowMap(Technique):
     ``levels``         clipmap levels of a directional light             8        1 .. 16
     ``pool_pages``     tiles of the physical pool (the pool is a square  256      1 .. 16384
                        texture of at most 16384 texels per side)
-    ``filter``         ``none``: Williams' test; ``pcf``: 3 x 3 texels    none     none, pcf
-                       across page borders
+    ``filter``         ``none``: Williams' test; ``pcf``: 4 x 4 reads    pcf      none, pcf
+                       over half the pixel's footprint (at most 2
+                       texels a side), across page borders
     ``cache``          keep pages' depths across frames                  true     true, false
     ``bias``           constant depth bias, scene units                  0.02     0 .. 1e7
     ``slope_bias``     times the receiver plane's depth slope x the      1.0      0 .. 64
@@ -119,10 +131,10 @@ class VirtualShadowMap(Technique):
         virtual_res: int = Field(16384, ge=4096, le=16384)
         page: int = Field(128, ge=8, le=1024)
         levels: int = Field(8, ge=1, le=16)
-        # a 512 x 512 view marked 46 to 73 pages of 128 texels on castle and the four families
-        # at 10^5 (filter none or pcf): 256 holds three times that, a 16 MiB pool
+        # a 512 x 512 view marked 51 to 197 pages of 128 texels on the five families at 10^5 and
+        # 10^6 (13 to 108 on the shipped scenes at their sizes): 256 holds them, a 16 MiB pool
         pool_pages: int = Field(256, ge=1, le=16384)
-        filter: Literal["none", "pcf"] = "none"
+        filter: Literal["none", "pcf"] = "pcf"
         cache: bool = True
         bias: float = Field(0.02, ge=0, le=MAX_BIAS)
         slope_bias: float = Field(1.0, ge=0, le=MAX_TEXELS)
@@ -162,7 +174,8 @@ class VirtualShadowMap(Technique):
         self.pages = PagePool(p.pool_pages, p.page, levels.table_size, levels.count,
                               spatial_order(vertices, faces), scene.has_alpha)
         self.mark = ComputeProgram(HERE / "vsm_mark.comp.glsl")
-        defines = {"PCF": 1} if p.filter == "pcf" else {}
+        defines = ({"PCF": 1, "MAX_FOOTPRINT": f"{2 * PCF_REACH / PCF_RES_FACTOR:.1f}"}
+                   if p.filter == "pcf" else {})
         self.shading = self.shader(__file__, "fullscreen.vert.glsl", "vsm_shading.frag.glsl",
                                    **defines)
         parts = frame.scene.parts
@@ -181,7 +194,8 @@ class VirtualShadowMap(Technique):
     def level_uniforms(self, frame: Frame, levels: Levels, bias: int = 0) -> dict:
         return dict(level_count=levels.count, nested_levels=levels.nested, level_bias=bias,
                     page_size=levels.page, eye_position=frame.camera.position,
-                    pixel_angle=pixel_angle(frame.camera.proj, frame.height))
+                    pixel_angle=pixel_angle(frame.camera.proj, frame.height),
+                    light_vector=light_vector(frame.scene.light))
 
     def moved_boxes(self, poses: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """World boxes of the parts that moved since the last update, at their old and new
@@ -219,12 +233,6 @@ class VirtualShadowMap(Technique):
                 self.pages.box_clusters(frame)
         self.light, self.poses, self.geometry = key, poses.copy(), frame.geometry
 
-    def light_vector(self, frame: Frame) -> np.ndarray:
-        light = frame.scene.light
-        if light.type == "directional":
-            return np.append(-np.asarray(light.direction, np.float64), 0.0)
-        return np.append(np.asarray(light.position, np.float64), 1.0)
-
     def request_pages(self, frame: Frame, levels: Levels) -> int:
         """Mark the pages the view needs, coarser until they fit the pool; the coarsening."""
         reach = PCF_REACH if self.params.filter == "pcf" else 0.0
@@ -233,8 +241,7 @@ class VirtualShadowMap(Technique):
             self.pages.start_frame()
             self.pages.bind()
             self.mark.use().set(gbuffer_position=frame.gbuffer.position_texture.bind(0),
-                                gbuffer_normal=frame.gbuffer.normal_texture.bind(1),
-                                light_vector=self.light_vector(frame), reach=reach,
+                                gbuffer_normal=frame.gbuffer.normal_texture.bind(1), reach=reach,
                                 **self.map_uniforms(frame, levels), **uniforms)
             GL.glDispatchCompute(-(-frame.width // 8), -(-frame.height // 8), 1)
             barrier()
@@ -272,7 +279,9 @@ class VirtualShadowMap(Technique):
             self.pages.bind()
             GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
             GL.glBindTexture(GL.GL_TEXTURE_2D, self.pages.pool)
-            sampling = Sampling(grid_n=3, spacing=1.0, bias_min=p.bias, bias_max=p.bias,
+            sampling = Sampling(grid_n=PCF_GRID, footprint_region=True,
+                                res_factor=PCF_RES_FACTOR, min_size=PCF_MIN_SIZE,
+                                bias_min=p.bias, bias_max=p.bias,
                                 slope_bias=p.slope_bias, bias_mode=p.bias_mode,
                                 normal_offset=p.normal_offset)
             pcf = sampling_uniforms(frame, sampling) if p.filter == "pcf" else {}
@@ -288,7 +297,7 @@ class VirtualShadowMap(Technique):
         # the page draws' alpha tests, four texels each, per pixel (untimed repeat)
         alpha_tests = self.pages.alpha_tests(frame, int(c[JOBS]), draws, uniforms)
         covered = int(np.count_nonzero(frame.arrays.covered))
-        fetches = (9 if p.filter == "pcf" else 1) + 4 * alpha_tests / max(covered, 1)
+        fetches = (PCF_GRID ** 2 if p.filter == "pcf" else 1) + 4 * alpha_tests / max(covered, 1)
         return frame.output(mem_bytes=self.pages.mem_bytes, fetches_per_px=fetches,
                             nonfinite=nonfinite, extra=self.columns(frame))
 
@@ -297,8 +306,9 @@ class VirtualShadowMap(Technique):
         float64; -1 elsewhere): a diagnostic, untimed."""
         a, levels = frame.arrays, self.levels
         chosen = choose_levels(levels, a.position[a.covered].astype(np.float64),
-                               frame.camera.position, pixel_angle(frame.camera.proj, frame.height),
-                               self.counts.coarsened)
+                               a.normal[a.covered].astype(np.float64), frame.camera.position,
+                               light_vector(frame.scene.light),
+                               pixel_angle(frame.camera.proj, frame.height), self.counts.coarsened)
         used = np.full(a.covered.shape, -1, np.int64)
         used[a.covered] = chosen
         return used

@@ -27,6 +27,7 @@ uniform int level_bias;     // coarsening under a full pool
 uniform int page_size;
 uniform float pixel_angle;  // a pixel's width over its distance from the camera
 uniform vec3 eye_position;  // the camera's
+uniform vec4 light_vector;  // (position, 1) for a spot light, (toward the light, 0) directional
 
 vec4 level_clip(int k, vec3 world) {
     return levels[k].proj * (levels[k].view * vec4(world, 1.0));
@@ -37,17 +38,26 @@ vec2 level_texel(int k, vec3 world) {
     return (clip.xy / clip.w * 0.5 + 0.5) * levels[k].res.x;
 }
 
-// The longer world side of level k's texel at `world`.
+// levels.SLANT_RANGE: the receiver's slant moves a pixel's level one finer or three coarser
+const vec2 SLANT_RANGE = vec2(0.5, 8.0);
+
+// The world side of the square of level k's texel's area at `world` (a light frustum fitted
+// to the scene may give its texels two sides).
 float level_texel_world(int k, vec3 world) {
     mat4 p = levels[k].proj;
-    return 2.0 * level_clip(k, world).w / (min(p[0][0], p[1][1]) * levels[k].res.x);
+    return 2.0 * level_clip(k, world).w / (sqrt(p[0][0] * p[1][1]) * levels[k].res.x);
 }
 
-// The level whose texel is the largest not above the pixel's footprint on a surface facing
-// the camera (its distance x pixel_angle), coarsened by level_bias, then coarser while the
+// The level whose texel is the largest not above the pixel's footprint, both taken on the
+// receiver's plane (levels.natural_level), coarsened by level_bias, then coarser while the
 // point lies within a page of a nested level's window edge (a filter's reads stay inside).
-int choose_level(vec3 world) {
-    float footprint = distance(world, eye_position) * pixel_angle;
+int choose_level(vec3 world, vec3 normal) {
+    vec3 to_light = light_vector.w == 0.0 ? normalize(light_vector.xyz)
+                                          : normalize(light_vector.xyz - world);
+    float facing_eye = max(abs(dot(normal, normalize(eye_position - world))), 1e-6);
+    float slant = clamp(sqrt(abs(dot(normal, to_light)) / facing_eye), SLANT_RANGE.x,
+                        SLANT_RANGE.y);
+    float footprint = distance(world, eye_position) * pixel_angle * slant;
     float ratio = log2(footprint / level_texel_world(0, world));
     int k = int(clamp(floor(ratio), 0.0, float(level_count - 1)));
     k = min(k + level_bias, level_count - 1);

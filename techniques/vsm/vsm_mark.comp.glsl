@@ -16,7 +16,6 @@ float map_depth(ivec2 cell) { return 0.0; }  // marking reads no depth
 
 uniform sampler2D gbuffer_position;
 uniform sampler2D gbuffer_normal;
-uniform vec4 light_vector;  // (position, 1) for a spot light, (toward the light, 0) directional
 uniform float reach;
 
 layout(std430, binding = 2) buffer Requests { uint requests[]; };
@@ -34,7 +33,7 @@ void main() {
     if (p.w < 0.5) return;
     vec3 n = texelFetch(gbuffer_normal, pixel, 0).xyz;
     if (!faces_light(p.xyz, visible_side(n, p.xyz, eye_position), light_vector)) return;
-    int k = choose_level(p.xyz);
+    int k = choose_level(p.xyz, n);
     light_view = levels[k].view;
     light_proj = levels[k].proj;
     map_res = levels[k].res.x;

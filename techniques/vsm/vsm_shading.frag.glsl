@@ -1,7 +1,7 @@
 // V through the page table: each pixel takes its level (choose_level, as marking did) and
-// makes Williams' test (or, with PCF, pcf_samples.glsl's 3 x 3 texels, across page borders:
-// every read goes through the table) on that level's virtual texels, with shadow_map.glsl's
-// bias in that level's texels. A read of a page the pool does not hold counts as lit.
+// makes Williams' test (or, with PCF, pcf_samples.glsl's reads over the pixel's footprint,
+// across page borders: every read goes through the table) on that level's virtual texels, with
+// shadow_map.glsl's bias in that level's texels. A read of a page the pool does not hold counts as lit.
 #define MAP_PER_PIXEL 1
 #include "vsm_levels.glsl"
 
@@ -34,6 +34,7 @@ float map_depth(ivec2 cell) {
 // included here, not in a branch: an include is expanded once, where it first appears
 #include "gbuffer_read.glsl"
 #include "../common/shadow_map.glsl"
+#include "../common/receives_light.glsl"
 #ifdef PCF
 #include "../common/pcf_samples.glsl"
 float sample_test(vec2 texel, float depth, float bias, float window_bias) {
@@ -47,7 +48,12 @@ layout(location = 0) out float visibility;
 void main() {
     vec3 p, n;
     if (!gbuffer_fetch(p, n)) { visibility = 1.0; return; }
-    level = choose_level(p);
+    // marking requested no page for a side the light does not reach (as rt, V = 0 there)
+    if (!faces_light(p, visible_side(n, p, eye_position), light_vector)) {
+        visibility = 0.0;
+        return;
+    }
+    level = choose_level(p, n);
     light_view = levels[level].view;
     light_proj = levels[level].proj;
     map_res = levels[level].res.x;

@@ -1,6 +1,6 @@
 """Virtual shadow maps (techniques/vsm): the pages marked on the GPU against a NumPy float64
-oracle, visibility against sm at the same effective resolution, the page cache under motion,
-and bad parameters."""
+oracle, visibility against sm (and, filtered, pcf) at the same effective resolution, the page
+cache under motion, and bad parameters."""
 
 from __future__ import annotations
 
@@ -13,10 +13,13 @@ from harness.scene import build_scene
 from harness.technique import Frame, reset_gl_state
 from harness.truth.metrics import receives_light
 from helpers import ROOT
+from techniques.common.footprint import receivers, texel_ratios
+from techniques.pcf import PercentageCloserFiltering
 from techniques.sm import ShadowMap
 from techniques.vsm import VirtualShadowMap
 from techniques.vsm import vsm as vsm_module
-from techniques.vsm.levels import choose_levels, map_texels, natural_level, pixel_angle
+from techniques.vsm.levels import (choose_levels, light_vector, map_texels, natural_level,
+                                   pixel_angle)
 from techniques.vsm.pages import spatial_order
 
 MOTION_SCENES = ROOT / "experiments" / "motion" / "scenes.yaml"
@@ -28,9 +31,11 @@ TEXEL_TIE = 1e-2
 
 def run(frame, technique=None, **params):
     """(V, the technique) after update and render on ``frame``; a new technique unless given
-    (then left prepared)."""
+    (then left prepared), unfiltered unless ``filter`` is given: the oracles below are
+    Williams' test's."""
     own = technique is None
-    technique = technique or VirtualShadowMap(VirtualShadowMap.Params(**params))
+    technique = technique or VirtualShadowMap(VirtualShadowMap.Params(
+        **{"filter": "none", **params}))
     if own:
         technique.prepare(frame)
     technique.update(frame)
@@ -53,60 +58,70 @@ def gpu_pages(technique) -> set[tuple[int, int, int]]:
     return found
 
 
-def oracle_pages(frame, technique, bias: int = 0):
+def oracle_pages(frame, technique, bias: int = 0, reach: float = 0.0):
     """The (level, global page) sets of the marked pixels in float64: those of pixels clear of
     every boundary, and those a float32 computation may also reach (a tie pixel's levels one
-    either side, its texel moved by TEXEL_TIE)."""
+    either side, its texel moved by TEXEL_TIE). With ``reach``, a pixel's pages are those of
+    its texel moved ``reach`` texels to each corner (a filter's reads)."""
     levels, a = technique.levels, frame.arrays
     eye = frame.camera.position
     lit = a.covered & receives_light(a.normal, a.position, frame.scene.light, eye)
-    points = a.position[lit].astype(np.float64)
+    points, normals = a.position[lit].astype(np.float64), a.normal[lit].astype(np.float64)
     angle = pixel_angle(frame.camera.proj, frame.height)
-    k = choose_levels(levels, points, eye, angle, bias)
-    _, ratio = natural_level(levels, points, eye, angle)
-    texel = map_texels(levels, k, points)
-    near_page_edge = np.abs(texel / levels.page - np.round(texel / levels.page)) * levels.page
-    window = [np.abs(map_texels(levels, np.full(len(points), j), points) - edge).min(axis=1)
-              for j in range(levels.nested)
-              for edge in (levels.page, levels.res[j] - levels.page)]
-    tie = (np.abs(ratio - np.round(ratio)) < LEVEL_TIE) | (near_page_edge < TEXEL_TIE).any(axis=1)
-    for distance in window:
-        tie |= distance < TEXEL_TIE
-    inside = ((texel >= 0) & (texel < levels.res[k][:, None])).all(axis=1)
+    light = light_vector(frame.scene.light)
+    k = choose_levels(levels, points, normals, eye, light, angle, bias)
+    _, ratio = natural_level(levels, points, normals, eye, light, angle)
+    level_tie = np.abs(ratio - np.round(ratio)) < LEVEL_TIE
+    for j in range(levels.nested):
+        for edge in (levels.page, levels.res[j] - levels.page):
+            distance = np.abs(map_texels(levels, np.full(len(points), j), points) - edge)
+            level_tie |= distance.min(axis=1) < TEXEL_TIE
+    corners = [(-reach, -reach)] + ([(reach, -reach), (-reach, reach), (reach, reach)]
+                                    if reach > 0 else [])
 
     def pages(levels_of, texels, where):
         local = np.floor(texels[where] / levels.page).astype(np.int64)
         g = levels.origins[levels_of[where]] + local
         return {(int(j), int(x), int(y)) for j, (x, y) in zip(levels_of[where], g)}
 
-    certain = pages(k, texel, ~tie & inside)
-    possible = set(certain)
-    for shift in (-1, 0, 1):
-        j = np.clip(k + shift, 0, levels.count - 1)
-        texels = map_texels(levels, j, points)
-        for dx in (-TEXEL_TIE, 0, TEXEL_TIE):
-            for dy in (-TEXEL_TIE, 0, TEXEL_TIE):
-                moved = texels + [dx, dy]
-                ok = tie & ((moved >= 0) & (moved < levels.res[j][:, None])).all(axis=1)
-                possible |= pages(j, moved, ok)
-    return certain, possible, k[~tie]
+    def within(texels, levels_of):
+        return ((texels >= 0) & (texels < levels.res[levels_of][:, None])).all(axis=1)
+
+    certain, possible = set(), set()
+    for corner in corners:
+        texel = map_texels(levels, k, points) + corner
+        near_page_edge = np.abs(texel / levels.page - np.round(texel / levels.page)) * levels.page
+        tie = level_tie | (near_page_edge < TEXEL_TIE).any(axis=1)
+        certain |= pages(k, texel, ~tie & within(texel, k))
+        for shift in (-1, 0, 1):
+            j = np.clip(k + shift, 0, levels.count - 1)
+            texels = map_texels(levels, j, points) + corner
+            for dx in (-TEXEL_TIE, 0, TEXEL_TIE):
+                for dy in (-TEXEL_TIE, 0, TEXEL_TIE):
+                    moved = texels + [dx, dy]
+                    possible |= pages(j, moved, tie & within(moved, j))
+    possible |= certain
+    return certain, possible, k[~level_tie]
 
 
+@pytest.mark.parametrize("filter_name", ["none", "pcf"])
 @pytest.mark.parametrize("scene_name, size", [("castle", 96), ("terrain_long", 96),
                                               ("sphere_plane", 64)])
-def test_marked_pages_are_the_oracles(scene_name, size, gl_context, scene_at):
+def test_marked_pages_are_the_oracles(scene_name, size, filter_name, gl_context, scene_at):
     """Every pixel whose visible side faces the light marks the page of its texel in the level
     whose texel is the largest not above its footprint (levels.choose_levels in float64, the
-    nested windows' edges included): the GPU's set of (level, global page) holds every page
-    of the pixels clear of a boundary and nothing a float32 tie could not reach. castle and
-    terrain_long (directional: clipmap levels and mips, several in use), sphere_plane (a spot
-    light's mips). Catches the level from the wrong footprint (one level off: every page at
-    another level)."""
+    nested windows' edges included), filtered the pages of its texel moved PCF_REACH texels to
+    each corner (the filter's reads stay within them): the GPU's set of (level, global page)
+    holds every page of the pixels clear of a boundary and nothing a float32 tie could not
+    reach. castle and terrain_long (directional: clipmap levels and mips, several in use),
+    sphere_plane (a spot light's mips). Catches the level from the wrong footprint (one level
+    off: every page at another level) and a filter's reach not marked (pages missing)."""
     frame = Frame(scene_at(scene_name, size))
+    reach = vsm_module.PCF_REACH if filter_name == "pcf" else 0.0
     try:
-        output, technique = run(frame, virtual_res=4096, page=64)
+        output, technique = run(frame, virtual_res=4096, page=64, filter=filter_name)
         found = gpu_pages(technique)
-        certain, possible, levels_used = oracle_pages(frame, technique)
+        certain, possible, levels_used = oracle_pages(frame, technique, reach=reach)
         technique.release()
     finally:
         frame.release()
@@ -172,46 +187,66 @@ def levels_used(frame, technique) -> np.ndarray:
     levels, a = technique.levels, frame.arrays
     eye = frame.camera.position
     points = a.position.reshape(-1, 3).astype(np.float64)
+    normals = a.normal.reshape(-1, 3).astype(np.float64)
     angle = pixel_angle(frame.camera.proj, frame.height)
-    k = choose_levels(levels, points, eye, angle)
-    _, ratio = natural_level(levels, points, eye, angle)
+    light = light_vector(frame.scene.light)
+    k = choose_levels(levels, points, normals, eye, light, angle)
+    _, ratio = natural_level(levels, points, normals, eye, light, angle)
     k[np.abs(ratio - np.round(ratio)) < LEVEL_TIE] = -1
     return k.reshape(a.covered.shape)
 
 
+def same_resolution_map(filter_name: str, res: int):
+    """The fixed-map technique a vsm level of ``res`` texels equals: sm unfiltered, pcf with
+    vsm's filter (a 4 x 4 grid over half the footprint, at least a quarter texel; one bias)."""
+    if filter_name == "none":
+        return ShadowMap(ShadowMap.Params(res=res))
+    return PercentageCloserFiltering(PercentageCloserFiltering.Params(
+        res=res, k=vsm_module.PCF_GRID ** 2, res_factor=vsm_module.PCF_RES_FACTOR,
+        min_size=vsm_module.PCF_MIN_SIZE, bias_min=0.02, bias_max=0.02))
+
+
+@pytest.mark.parametrize("filter_name", ["none", "pcf"])
 @pytest.mark.parametrize("scene_name", ["castle", "sphere_plane"])
-def test_visibility_equals_sm_at_the_same_effective_resolution(scene_name, gl_context,
-                                                               scene_at):
+def test_visibility_equals_sm_at_the_same_effective_resolution(scene_name, filter_name,
+                                                               gl_context, scene_at):
     """With one clipmap level (directional: the light's map frustum, sm's, then its mips; a
     spot: its cone's mips) and every page in the pool, a pixel using mip m is tested exactly
     as sm's map of virtual_res / 2^m texels tests it: the same frustum, the same texel grid,
-    the same shadow_map.glsl arithmetic. V equals sm's there except on ties (a texel centre on
-    a caster's edge rasterised either way after the page's remap to its tile): at most 0.2 %
-    of the pixels. Catches a page drawn at an offset into its tile (every shadow edge moves by
-    a texel) or a read of the wrong tile."""
+    the same shadow_map.glsl arithmetic; filtered, as pcf's map of that size filters it (the
+    same footprint region and reads, across page borders through the table). On the pixels
+    the light reaches (the others are V = 0 in vsm, as in rt, and in no comparison) V equals
+    sm's (pcf's) there except on ties (a texel centre on a caster's edge rasterised either way
+    after the page's remap to its tile) and, filtered, where vsm's region stops at 2 texels a
+    side (pcf's at 32): at most 0.2 % of the pixels (1 % filtered; measured 0, and 66 of 9,179
+    on castle, 0 of 15,031 on sphere_plane). Catches a page drawn at an
+    offset into its tile (every shadow edge moves by a texel), a read of the wrong tile, and a
+    filter reading outside the pages marked for it (those reads lit)."""
     frame = Frame(scene_at(scene_name, 128))
     compared = differing = 0
     try:
-        output, technique = run(frame, virtual_res=4096, page=64, levels=1, pool_pages=4096)
+        output, technique = run(frame, virtual_res=4096, page=64, levels=1, pool_pages=4096,
+                                filter=filter_name)
         used = levels_used(frame, technique)
         res = technique.levels.res
         technique.release()
         for k in np.unique(used[frame.arrays.covered]):
             if k < 0 or res[k] < 16:
                 continue
-            sm = ShadowMap(ShadowMap.Params(res=int(res[k])))
-            sm.prepare(frame)
-            sm.update(frame)
-            v = sm.render(frame).visibility
-            sm.release()
+            fixed = same_resolution_map(filter_name, int(res[k]))
+            fixed.prepare(frame)
+            fixed.update(frame)
+            v = fixed.render(frame).visibility
+            fixed.release()
             reset_gl_state()
-            here = frame.arrays.covered & (used == k)
+            here = receivers(frame) & (used == k)
             compared += here.sum()
-            differing += (v[here] != output.visibility[here]).sum()
+            differing += (np.abs(v[here] - output.visibility[here]) > 1e-6).sum()
     finally:
         frame.release()
-    assert compared > 0.9 * frame.arrays.covered.sum()
-    assert differing <= 0.002 * compared, (differing, compared)
+    assert compared > 0.9 * receivers(frame).sum()
+    assert differing <= (0.002 if filter_name == "none" else 0.01) * compared, (differing,
+                                                                                 compared)
 
 
 def motion_frame(name: str, size: int = 96) -> Frame:
@@ -233,14 +268,15 @@ def test_cached_frames_equal_fresh_uncached_ones(scene_name, size, frames, gl_co
     moves, fewer pages are rendered than marked. Catches the moving object's old pose not
     invalidated (its old shadow stays in cached pages)."""
     frame = motion_frame(scene_name, size)
-    cached = VirtualShadowMap(VirtualShadowMap.Params(virtual_res=4096, page=64))
+    # filtered (the default), so a page's border reads of a neighbour page are checked too
+    cached = VirtualShadowMap(VirtualShadowMap.Params(virtual_res=4096, page=64, filter="pcf"))
     rendered, marked = [], []
     try:
         cached.prepare(frame)
         for t in frames:
             frame.move_to(t)
             output, _ = run(frame, cached)
-            fresh, technique = run(frame, virtual_res=4096, page=64, cache=False)
+            fresh, technique = run(frame, virtual_res=4096, page=64, cache=False, filter="pcf")
             technique.release()
             np.testing.assert_array_equal(output.visibility, fresh.visibility, err_msg=f"{t}")
             if t:
@@ -325,3 +361,25 @@ def test_spatial_order_keeps_every_face_and_makes_clusters_compact():
     ordered = spatial_order(vertices, faces)
     assert sorted(map(tuple, ordered)) == sorted(map(tuple, faces))
     assert mean_box_side(ordered) <= 0.5 * mean_box_side(faces)
+
+
+@pytest.mark.parametrize("scene_name", ["pins", "jeep", "terrain_long"])
+def test_a_pixel_reads_between_half_a_texel_and_two(scene_name, gl_context, scene_at):
+    """Issue 49: at the defaults at least 95 % of the receivers read a level whose texel is
+    between 0.5 and 2 pixels across on the receiver's plane (footprint.texel_ratios, the
+    texels_per_pixel columns' measure, in each pixel's level; measured 99.7 to 100 % at the
+    scenes' sizes, 128 x 128 here). Catches the level chosen from the pixel's distance alone
+    (tried: 77 % on pins, 82 % on jeep, 51 % on terrain_long, slanted receivers reading texels
+    of a third of a pixel; with a rectangular texel's longer side too, 49, 55 and 39 % at the
+    scenes' sizes)."""
+    frame = Frame(scene_at(scene_name, 128))
+    try:
+        _, technique = run(frame)
+        levels = technique.levels
+        ratios = texel_ratios(frame, [(proj @ view, res) for view, proj, res in zip(
+            levels.views, levels.projs, levels.res)], technique.level_map(frame))
+        technique.release()
+    finally:
+        frame.release()
+    inside = np.mean((ratios >= 0.5) & (ratios <= 2.0))
+    assert inside >= 0.95, f"{100 * inside:.1f} % within 0.5 to 2 texels per pixel"
