@@ -28,7 +28,12 @@ $(STAMPS)/debs:
 # before the project took that name holds it as `shadowbench`: uninstalled first (only when its
 # entry points are this project's techniques, with the egg-info its editable install left in the
 # checkout), or every technique would be registered twice.
-$(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
+# Distributions the real corpus reads files from and never imports (scenes.yaml's package:
+# meshes), pinned so that the files and the scenes' references stay; without their dependencies
+# (robosuite's would bring numba and OpenCV for one STL).
+CORPUS_FILES_ONLY = robosuite==1.5.2
+
+$(STAMPS)/venv: $(STAMPS)/debs pyproject.toml Makefile
 	@test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	@if $(PY) -c "import importlib.metadata as m, sys; \
@@ -36,6 +41,7 @@ $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml
 	  m.distribution('shadowbench').entry_points.select(group='shadowbench.techniques')))" \
 	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; rm -rf shadowbench.egg-info; fi
 	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q --no-deps $(CORPUS_FILES_ONLY)
 	@touch $@
 
 # A technique of your own (a folder with its pyproject.toml, e.g. a copy of examples/plugin)

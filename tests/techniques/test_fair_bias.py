@@ -22,7 +22,7 @@ FILTERED = ("pcf", "mdsm", "silhouette")
 # point of the curve the tuner searches): 120 runs, about a minute more on 2 busy cores
 CORPUS = ("real_airplane", "real_airplane_spot", "real_plates", "real_plates_spot",
           "real_vault", "real_vault_spot", "real_monkey", "real_monkey_spot", "real_beams",
-          "real_beams_spot")
+          "real_beams_spot", "real_torso", "real_torso_spot")
 CORPUS_MAP = 1024
 
 # The runs that miss the bar at the defaults, and why. No other default serves them
@@ -51,7 +51,7 @@ EXCEPTIONS = {
     **{(s, 1024, "mdsm"): WINDOW for s in ("camera_in_shadow", "castle")},
     **{(s, 256, "mdsm"): CORPUS_WINDOW for s in (
         "real_airplane_spot", "real_plates", "real_plates_spot", "real_vault_spot", "real_monkey",
-        "real_beams", "real_beams_spot")},
+        "real_beams", "real_beams_spot", "real_torso", "real_torso_spot")},
 }
 del EXCEPTIONS["terrain_long", 4096, "silhouette"]  # meets the bar
 
