@@ -126,6 +126,13 @@ def map_texels(levels: Levels, k: np.ndarray, points: np.ndarray) -> np.ndarray:
     return (clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * levels.res[k][:, None]
 
 
+def coarsening_steps(count: int) -> list[tuple[int, float]]:
+    """The (level bias, slant floor) pairs a full pool tries in turn: the slant's floors at the
+    natural levels, then the whole view a level coarser at a time at the last floor."""
+    return ([(0, floor) for floor in SLANT_FLOORS]
+            + [(bias, SLANT_FLOORS[-1]) for bias in range(1, count)])
+
+
 def light_vector(light) -> np.ndarray:
     """vsm_levels.glsl's ``light_vector``: (position, 1) for a spot light, (toward the light, 0)
     for a directional one."""
@@ -134,41 +141,50 @@ def light_vector(light) -> np.ndarray:
     return np.append(np.asarray(light.position, np.float64), 1.0)
 
 
-# How far the receiver's slant moves a pixel's level (vsm_levels.glsl's SLANT_RANGE): one level
-# finer at most, three coarser. A receiver almost edge-on to the light (a sphere's terminator)
-# would otherwise take ever finer pages for a sliver of pixels (instancing's spheres needed
-# more than the pool); one edge-on to the camera, the coarsest level.
-SLANT_RANGE = (0.5, 8.0)
+# How far the receiver's slant moves a pixel's level (vsm_levels.glsl's slant_floor and
+# SLANT_CEILING): at most three levels coarser (a receiver edge-on to the camera), and finer by
+# the first floor whose pages fit the pool, two levels at most, then one, before the whole view
+# coarsens (a sphere's terminator, almost edge-on to the light, asks ever finer pages: at 0.25
+# instancing's spheres marked 492 to 547 pages, twice the default pool).
+SLANT_FLOORS = (0.25, 0.5)
+SLANT_CEILING = 8.0
 
 
 def natural_level(levels: Levels, points: np.ndarray, normals: np.ndarray,
-                  camera_position: np.ndarray, light: np.ndarray,
-                  angle: float) -> tuple[np.ndarray, np.ndarray]:
+                  camera_position: np.ndarray, light: np.ndarray, angle: float,
+                  slant_floor: float = SLANT_FLOORS[0]) -> tuple[np.ndarray, np.ndarray]:
     """The level whose texel is the largest not above the pixel's footprint, both taken on the
     receiver's plane: floor(log2(footprint / level 0's texel)), within the levels; and that
     log2 (to tell how near a point is to the next level). On the plane of normal n a pixel at
     distance d covers (d ``angle``)^2 / |n.v| and a texel of side t (t^2 / |n.l|, v and l the
     directions to the camera and to ``light``, light_vector's form), so a texel is at most a
-    pixel across on the receiver where t <= d ``angle`` sqrt(|n.l| / |n.v|)."""
+    pixel across on the receiver where t <= d ``angle`` sqrt(|n.l| / |n.v|), that factor held
+    within ``slant_floor`` .. SLANT_CEILING."""
     to_eye = camera_position - points
     to_eye /= np.linalg.norm(to_eye, axis=1, keepdims=True)
     to_light = np.broadcast_to(light[:3], points.shape) - light[3] * points
     to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
     facing_eye = np.maximum(np.abs(np.einsum("nk,nk->n", normals, to_eye)), 1e-6)
     slant = np.clip(np.sqrt(np.abs(np.einsum("nk,nk->n", normals, to_light)) / facing_eye),
-                    *SLANT_RANGE)
+                    slant_floor, SLANT_CEILING)
     footprint = np.linalg.norm(points - camera_position, axis=1) * angle * slant
-    ratio = np.log2(footprint / texel_world(levels, 0, points))
-    return np.clip(np.floor(ratio), 0, levels.count - 1).astype(np.int64), ratio
+    texel = texel_world(levels, 0, points)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.log2(footprint / texel)
+    # a point behind a spot light (texel <= 0) lies in no level's frustum: the coarsest
+    k = np.where(texel > 0, np.clip(np.floor(np.nan_to_num(ratio)), 0, levels.count - 1),
+                 levels.count - 1)
+    return k.astype(np.int64), ratio
 
 
 def choose_levels(levels: Levels, points: np.ndarray, normals: np.ndarray,
                   camera_position: np.ndarray, light: np.ndarray, angle: float,
-                  bias: int = 0) -> np.ndarray:
-    """vsm_levels.glsl's choice per point: the natural level plus ``bias`` (coarsening), then
-    coarser while the point lies within a page of a nested level's window edge."""
-    k = np.minimum(natural_level(levels, points, normals, camera_position, light, angle)[0]
-                   + bias, levels.count - 1)
+                  bias: int = 0, slant_floor: float = SLANT_FLOORS[0]) -> np.ndarray:
+    """vsm_levels.glsl's choice per point: the natural level (at ``slant_floor``) plus ``bias``
+    (coarsening), then coarser while the point lies within a page of a nested level's window
+    edge."""
+    k = np.minimum(natural_level(levels, points, normals, camera_position, light, angle,
+                                 slant_floor)[0] + bias, levels.count - 1)
     for _ in range(levels.nested):
         texel = map_texels(levels, k, points)
         res = levels.res[k][:, None]

@@ -109,6 +109,7 @@ class FrameCounts:
     rendered: int = 0
     hits: int = 0
     coarsened: int = 0  # levels every pixel was moved up by to fit the pool
+    slant_floor: float = 0.25  # the receiver's slant's floor the pool held (levels.SLANT_FLOORS)
     draws: int = 0  # cluster draws into tiles
     invalidated: int = 0
 

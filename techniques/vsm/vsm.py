@@ -23,8 +23,8 @@ from techniques.common.light_maps import (BIAS_MODE_TUNING, BIAS_TERMS, BIAS_TUN
                                           MAX_TEXELS, BiasMode, Sampling, bias_uniforms,
                                           depth_precision, sampling_uniforms)
 
-from .levels import (Levels, choose_levels, level_chain, light_vector, pixel_angle,
-                     sequence_bounds, top_frustum)
+from .levels import (SLANT_FLOORS, Levels, choose_levels, coarsening_steps, level_chain,
+                     light_vector, pixel_angle, sequence_bounds, top_frustum)
 from .pages import (ALLOCATED, HITS, JOBS, MARKED, FrameCounts, PagePool, barrier, pool_tiles,
                     spatial_order)
 
@@ -53,13 +53,14 @@ class VirtualShadowMap(Technique):
     Each frame (all of it in ``render``, timed): page marking (vsm_mark.comp.glsl): every
     pixel whose visible side faces the light takes the level whose texel is the largest not
     above its footprint, both on the receiver's plane (levels.natural_level: distance x pixel
-    angle x sqrt(|n.l| / |n.v|), the slant's factor within SLANT_RANGE), so about one texel
-    per pixel (0.5 to 1 but for the camera's off-axis pixels and the slant's limits), and
-    requests the page of its texel (with ``filter: pcf`` the pages its filter's reads reach,
-    PCF_REACH texels about it);
-    allocation (vsm_pages.comp.glsl): if the requests need more tiles than are free, every
-    pixel moves a level coarser and marks again until they fit (``pages_coarsened`` counts
-    the levels); unrequested pages free their tiles to a ring on the GPU, requested ones take
+    angle x sqrt(|n.l| / |n.v|), the slant's factor within a floor and levels.SLANT_CEILING),
+    so about one texel per pixel (0.5 to 1 but for the camera's off-axis pixels and the
+    slant's limits), and requests the page of its texel (with ``filter: pcf`` the pages its
+    filter's reads reach, PCF_REACH texels about it);
+    allocation (vsm_pages.comp.glsl): if the requests need more tiles than are free, marking
+    runs again a step coarser until they fit (levels.coarsening_steps: the slant's floor
+    raised from 0.25 to 0.5, then every pixel a level coarser at a time; columns
+    ``slant_floor`` and ``pages_coarsened``, the levels); unrequested pages free their tiles to a ring on the GPU, requested ones take
     theirs from it, and a requested page whose depths are not current becomes a job; page
     rendering: per job, the caster clusters (runs of triangles in Z order of their centroids,
     pages.spatial_order) whose box meets the page's column are drawn into its tile (one
@@ -82,8 +83,8 @@ class VirtualShadowMap(Technique):
     per covered pixel: a frame whose pages all came from the cache adds none.
 
     Columns: ``pages_marked``, ``pages_allocated`` (new tiles this frame), ``pages_rendered``,
-    ``cache_hits``, ``pages_coarsened`` (levels), ``page_draws`` (cluster draws),
-    ``pages_invalidated``; ``mem_bytes`` is the pool and the page table.
+    ``cache_hits``, ``pages_coarsened`` (levels), ``slant_floor``, ``page_draws`` (cluster
+    draws), ``pages_invalidated``; ``mem_bytes`` is the pool and the page table.
 
     =================  ================================================  =======  ============
     Parameter          Meaning                                           Default  Range
@@ -191,8 +192,12 @@ class VirtualShadowMap(Technique):
         p = self.params
         return level_chain(self.top, frame.camera.position, p.virtual_res, p.page, p.levels)
 
-    def level_uniforms(self, frame: Frame, levels: Levels, bias: int = 0) -> dict:
+    def level_uniforms(self, frame: Frame, levels: Levels,
+                       step: tuple[int, float] = (0, SLANT_FLOORS[0])) -> dict:
+        """vsm_levels.glsl's uniforms at coarsening ``step`` (level bias, slant floor)."""
+        bias, slant_floor = step
         return dict(level_count=levels.count, nested_levels=levels.nested, level_bias=bias,
+                    slant_floor=slant_floor,
                     page_size=levels.page, eye_position=frame.camera.position,
                     pixel_angle=pixel_angle(frame.camera.proj, frame.height),
                     light_vector=light_vector(frame.scene.light))
@@ -233,11 +238,12 @@ class VirtualShadowMap(Technique):
                 self.pages.box_clusters(frame)
         self.light, self.poses, self.geometry = key, poses.copy(), frame.geometry
 
-    def request_pages(self, frame: Frame, levels: Levels) -> int:
-        """Mark the pages the view needs, coarser until they fit the pool; the coarsening."""
+    def request_pages(self, frame: Frame, levels: Levels) -> tuple[int, float]:
+        """Mark the pages the view needs, coarser until they fit the pool; the coarsening step
+        (level bias, slant floor) that fits."""
         reach = PCF_REACH if self.params.filter == "pcf" else 0.0
-        for bias in range(levels.count):
-            uniforms = self.level_uniforms(frame, levels, bias)
+        for step in coarsening_steps(levels.count):
+            uniforms = self.level_uniforms(frame, levels, step)
             self.pages.start_frame()
             self.pages.bind()
             self.mark.use().set(gbuffer_position=frame.gbuffer.position_texture.bind(0),
@@ -247,7 +253,7 @@ class VirtualShadowMap(Technique):
             barrier()
             fits, _ = self.pages.fits(uniforms)
             if fits:
-                return bias
+                return step
         raise RuntimeError("the coarsest level did not fit the pool")  # one page always does
 
     def map_uniforms(self, frame: Frame, levels: Levels) -> dict:
@@ -264,8 +270,8 @@ class VirtualShadowMap(Technique):
         with frame.measure("page_marking"):
             levels = self.chain(frame)
             self.pages.upload_levels(levels)
-            bias = self.request_pages(frame, levels)
-            uniforms = self.level_uniforms(frame, levels, bias)
+            step = self.request_pages(frame, levels)
+            uniforms = self.level_uniforms(frame, levels, step)
         with frame.measure("page_allocation"):
             if not p.cache:
                 self.pages.invalidate(uniforms, True, [])
@@ -290,7 +296,7 @@ class VirtualShadowMap(Technique):
             frame.draw_fullscreen(covered_only=True)
         counts.marked, counts.allocated = int(c[MARKED]), int(c[ALLOCATED])
         counts.rendered, counts.hits = int(c[JOBS]), int(c[HITS])
-        counts.coarsened, counts.draws = bias, draws
+        (counts.coarsened, counts.slant_floor), counts.draws = step, draws
         self.levels = levels
         nonfinite = int(sum(np.count_nonzero(~np.isfinite(m)) for m in (levels.views,
                                                                         levels.projs)))
@@ -308,7 +314,8 @@ class VirtualShadowMap(Technique):
         chosen = choose_levels(levels, a.position[a.covered].astype(np.float64),
                                a.normal[a.covered].astype(np.float64), frame.camera.position,
                                light_vector(frame.scene.light),
-                               pixel_angle(frame.camera.proj, frame.height), self.counts.coarsened)
+                               pixel_angle(frame.camera.proj, frame.height), self.counts.coarsened,
+                               self.counts.slant_floor)
         used = np.full(a.covered.shape, -1, np.int64)
         used[a.covered] = chosen
         return used
@@ -319,10 +326,11 @@ class VirtualShadowMap(Technique):
                                                               levels.res)]
         # the level map depends on the levels (in maps), the camera pass and the coarsening
         return {**texels_per_pixel(frame, maps, lambda: self.level_map(frame),
-                                   choice_key=str(c.coarsened).encode()),
+                                   choice_key=f"{c.coarsened} {c.slant_floor}".encode()),
                 "pages_marked": c.marked, "pages_allocated": c.allocated,
                 "pages_rendered": c.rendered, "cache_hits": c.hits,
-                "pages_coarsened": c.coarsened, "page_draws": c.draws,
+                "pages_coarsened": c.coarsened, "slant_floor": c.slant_floor,
+                "page_draws": c.draws,
                 "pages_invalidated": c.invalidated}
 
     def release(self) -> None:

@@ -38,8 +38,10 @@ vec2 level_texel(int k, vec3 world) {
     return (clip.xy / clip.w * 0.5 + 0.5) * levels[k].res.x;
 }
 
-// levels.SLANT_RANGE: the receiver's slant moves a pixel's level one finer or three coarser
-const vec2 SLANT_RANGE = vec2(0.5, 8.0);
+// levels.SLANT_FLOORS and SLANT_CEILING: the receiver's slant moves a pixel's level finer by
+// as much as slant_floor allows (the pool's first step back), three levels coarser at most
+uniform float slant_floor;
+const float SLANT_CEILING = 8.0;
 
 // The world side of the square of level k's texel's area at `world` (a light frustum fitted
 // to the scene may give its texels two sides).
@@ -55,8 +57,8 @@ int choose_level(vec3 world, vec3 normal) {
     vec3 to_light = light_vector.w == 0.0 ? normalize(light_vector.xyz)
                                           : normalize(light_vector.xyz - world);
     float facing_eye = max(abs(dot(normal, normalize(eye_position - world))), 1e-6);
-    float slant = clamp(sqrt(abs(dot(normal, to_light)) / facing_eye), SLANT_RANGE.x,
-                        SLANT_RANGE.y);
+    float slant = clamp(sqrt(abs(dot(normal, to_light)) / facing_eye), slant_floor,
+                        SLANT_CEILING);
     float footprint = distance(world, eye_position) * pixel_angle * slant;
     float ratio = log2(footprint / level_texel_world(0, world));
     int k = int(clamp(floor(ratio), 0.0, float(level_count - 1)));

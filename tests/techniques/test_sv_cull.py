@@ -49,11 +49,18 @@ def _render(frame: Frame, **params):
     return render_once(technique, frame)
 
 
+# Above this many triangles (robosuite's torso, 1.7 x 10^5) only the default setting runs: the
+# three others' per-triangle volumes took 50 s of the suite there, and the cull's arithmetic is
+# the same at every size (architecture's 10^4 below runs per-triangle volumes)
+LARGE_SCENE = 100_000
+
+
 @pytest.mark.parametrize("path,name", SCENES, ids=[n for _, n in SCENES])
 def test_cull_leaves_v_unchanged(gl_context, path, name):
     frame = Frame(load_scene(name, path).with_resolution(RES, RES))
+    large = len(frame.scene.triangles) > LARGE_SCENE
     try:
-        for setting in SETTINGS:
+        for setting in SETTINGS[:1] if large else SETTINGS:
             none = _render(frame, **setting)
             fragments = none.shadow_fragments
             for cull in ("cull", "cc"):

@@ -18,8 +18,8 @@ from techniques.pcf import PercentageCloserFiltering
 from techniques.sm import ShadowMap
 from techniques.vsm import VirtualShadowMap
 from techniques.vsm import vsm as vsm_module
-from techniques.vsm.levels import (choose_levels, light_vector, map_texels, natural_level,
-                                   pixel_angle)
+from techniques.vsm.levels import (SLANT_FLOORS, choose_levels, coarsening_steps, light_vector,
+                                   map_texels, natural_level, pixel_angle)
 from techniques.vsm.pages import spatial_order
 
 MOTION_SCENES = ROOT / "experiments" / "motion" / "scenes.yaml"
@@ -58,7 +58,8 @@ def gpu_pages(technique) -> set[tuple[int, int, int]]:
     return found
 
 
-def oracle_pages(frame, technique, bias: int = 0, reach: float = 0.0):
+def oracle_pages(frame, technique, bias: int = 0, reach: float = 0.0,
+                 slant_floor: float = SLANT_FLOORS[0]):
     """The (level, global page) sets of the marked pixels in float64: those of pixels clear of
     every boundary, and those a float32 computation may also reach (a tie pixel's levels one
     either side, its texel moved by TEXEL_TIE). With ``reach``, a pixel's pages are those of
@@ -69,8 +70,8 @@ def oracle_pages(frame, technique, bias: int = 0, reach: float = 0.0):
     points, normals = a.position[lit].astype(np.float64), a.normal[lit].astype(np.float64)
     angle = pixel_angle(frame.camera.proj, frame.height)
     light = light_vector(frame.scene.light)
-    k = choose_levels(levels, points, normals, eye, light, angle, bias)
-    _, ratio = natural_level(levels, points, normals, eye, light, angle)
+    k = choose_levels(levels, points, normals, eye, light, angle, bias, slant_floor)
+    _, ratio = natural_level(levels, points, normals, eye, light, angle, slant_floor)
     level_tie = np.abs(ratio - np.round(ratio)) < LEVEL_TIE
     for j in range(levels.nested):
         for edge in (levels.page, levels.res[j] - levels.page):
@@ -131,26 +132,39 @@ def test_marked_pages_are_the_oracles(scene_name, size, filter_name, gl_context,
     assert found <= possible, sorted(found - possible)[:5]
 
 
-def test_a_full_pool_coarsens_until_the_pages_fit(gl_context, scene_at):
-    """With a pool smaller than the natural pages (castle at 96 x 96), every pixel moves up
-    by the smallest number of levels at which its pages fit: the oracle's set at that bias
-    fits the pool and the one a level finer does not; the GPU marks the oracle's set. Catches
-    an overflow that is not coarsened (pages dropped) or one coarsened a level too far."""
-    frame = Frame(scene_at("castle", 96))
+@pytest.mark.parametrize("scene_name, size, share", [("castle", 96, 1 / 3),
+                                                     ("instancing", 128, 0.8)])
+def test_a_full_pool_coarsens_until_the_pages_fit(scene_name, size, share, gl_context,
+                                                  scene_at):
+    """With a pool smaller than the natural pages, marking takes the first coarsening step
+    (levels.coarsening_steps: the slant's floor raised, then every pixel a level up at a time)
+    whose pages fit: the oracle's set at that step fits the pool and the one a step finer does
+    not; the GPU marks the oracle's set. castle at 96 x 96 with a third of its pages moves
+    whole levels; instancing at 128 x 128 with 80 % only raises the floor (its spheres'
+    terminators, edge-on to the light, ask two levels finer at the first floor). Catches an
+    overflow that is not coarsened (pages dropped), one coarsened a step too far, or the
+    floor's step skipped (a whole level lost for a sliver of pixels)."""
+    frame = Frame(scene_at(scene_name, size))
     try:
         _, whole = run(frame, virtual_res=4096, page=64)
         natural = len(gpu_pages(whole))
         whole.release()
-        pool = natural // 3
+        pool = int(natural * share)
         output, technique = run(frame, virtual_res=4096, page=64, pool_pages=pool)
-        bias = output.extra["pages_coarsened"]
+        step = (output.extra["pages_coarsened"], output.extra["slant_floor"])
+        steps = coarsening_steps(technique.levels.count)
         found = gpu_pages(technique)
-        certain, possible, _ = oracle_pages(frame, technique, bias)
-        finer, _, _ = oracle_pages(frame, technique, bias - 1)
+        certain, possible, _ = oracle_pages(frame, technique, step[0], slant_floor=step[1])
+        before = steps[steps.index(step) - 1]
+        finer, _, _ = oracle_pages(frame, technique, before[0], slant_floor=before[1])
         technique.release()
     finally:
         frame.release()
-    assert bias >= 1 and len(found) <= pool < len(finer)
+    if scene_name == "instancing":
+        assert step == (0, SLANT_FLOORS[-1])
+    else:
+        assert step[0] >= 1
+    assert steps.index(step) >= 1 and len(found) <= pool < len(finer)
     assert certain <= found <= possible
 
 
@@ -218,7 +232,7 @@ def test_visibility_equals_sm_at_the_same_effective_resolution(scene_name, filte
     the light reaches (the others are V = 0 in vsm, as in rt, and in no comparison) V equals
     sm's (pcf's) there except on ties (a texel centre on a caster's edge rasterised either way
     after the page's remap to its tile) and, filtered, where vsm's region stops at 2 texels a
-    side (pcf's at 32): at most 0.2 % of the pixels (1 % filtered; measured 0, and 66 of 9,179
+    side (pcf's at 32): at most 0.2 % of the pixels (1 % filtered; measured 0, and 49 of 9,179
     on castle, 0 of 15,031 on sphere_plane). Catches a page drawn at an
     offset into its tile (every shadow edge moves by a texel), a read of the wrong tile, and a
     filter reading outside the pages marked for it (those reads lit)."""
