@@ -60,8 +60,8 @@ class VirtualShadowMap(Technique):
     allocation (vsm_pages.comp.glsl): if the requests need more tiles than are free, marking
     runs again a step coarser until they fit (levels.coarsening_steps: the slant's floor
     raised from 0.25 to 0.5, then every pixel a level coarser at a time; columns
-    ``slant_floor`` and ``pages_coarsened``, the levels); unrequested pages free their tiles to a ring on the GPU, requested ones take
-    theirs from it, and a requested page whose depths are not current becomes a job; page
+    ``slant_floor`` and ``pages_coarsened``, the levels); unrequested pages free their tiles
+    to a ring on the GPU, requested ones take theirs from it, and a requested page whose depths are not current becomes a job; page
     rendering: per job, the caster clusters (runs of triangles in Z order of their centroids,
     pages.spatial_order) whose box meets the page's column are drawn into its tile (one
     multi-draw of indirect commands made on the GPU); shading
