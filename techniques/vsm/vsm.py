@@ -58,16 +58,16 @@ class VirtualShadowMap(Technique):
     slant's limits), and requests the page of its texel (with ``filter: pcf`` the pages its
     filter's reads reach, PCF_REACH texels about it);
     allocation (vsm_pages.comp.glsl): if the requests need more tiles than are free, marking
-    runs again a step coarser until they fit (levels.coarsening_steps: the slant's floor
-    raised from 0.25 to 0.5, then every pixel a level coarser at a time; columns
-    ``slant_floor`` and ``pages_coarsened``, the levels); unrequested pages free their tiles
-    to a ring on the GPU, requested ones take theirs from it, and a requested page whose depths are not current becomes a job; page
-    rendering: per job, the caster clusters (runs of triangles in Z order of their centroids,
-    pages.spatial_order) whose box meets the page's column are drawn into its tile (one
-    multi-draw of indirect commands made on the GPU); shading
-    (vsm_shading.frag.glsl): Williams' test, or percentage-closer filtering over the pixel's
-    footprint (4 x 4 reads over half of it, as pcf's defaults; across page borders), through
-    the page table, with shadow_map.glsl's bias in the level's texels.
+    runs again a step coarser until they fit (levels.coarsening_steps: the slant's floor raised
+    from 0.25 to 0.5, then every pixel a level coarser at a time; columns ``slant_floor`` and
+    ``pages_coarsened``, the levels); unrequested pages free their tiles to a ring on the GPU,
+    requested ones take theirs from it, and a requested page whose depths are not current
+    becomes a job; page rendering: per job, the caster clusters (runs of triangles in Z order of
+    their centroids, pages.spatial_order) whose box meets the page's column are drawn into its
+    tile (one multi-draw of indirect commands made on the GPU); shading (vsm_shading.frag.glsl):
+    Williams' test, or percentage-closer filtering over the pixel's footprint (4 x 4 reads over
+    half of it, as pcf's defaults; across page borders), through the page table, with
+    shadow_map.glsl's bias in the level's texels.
 
     Caching (``cache: true``): a page keeps its depths while the light and the casters over it
     stay. ``update`` (the work for a changed light or geometry) drops every page's depths when
