@@ -33,15 +33,21 @@ $(STAMPS)/debs:
 # (robosuite's would bring numba and OpenCV for one STL).
 CORPUS_FILES_ONLY = robosuite==1.5.2
 
+# The project and its dev extras go in with uv, their bytecode compiled as pip does (without
+# it, where PYTHONDONTWRITEBYTECODE is set, every process the tests start compiles pandas and
+# scipy again); pip where uv cannot (no network to its downloads, an old platform), with the
+# same pins from pyproject.toml. Measured in docs/benchmarks.md ("make test").
 $(STAMPS)/venv: $(STAMPS)/debs pyproject.toml Makefile
 	@test -x $(PY) || python3 -m venv $(VENV)
-	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q --upgrade pip uv
 	@if $(PY) -c "import importlib.metadata as m, sys; \
 	  sys.exit(not any(e.value.startswith('techniques.') for e in \
 	  m.distribution('shadowbench').entry_points.select(group='shadowbench.techniques')))" \
 	  2>/dev/null; then $(PY) -m pip uninstall -q -y shadowbench; rm -rf shadowbench.egg-info; fi
-	$(PY) -m pip install -q -e '.[dev]'
-	$(PY) -m pip install -q --no-deps $(CORPUS_FILES_ONLY)
+	$(VENV)/bin/uv pip install -q --compile-bytecode --python $(PY) -e '.[dev]' \
+	  || $(PY) -m pip install -q -e '.[dev]'
+	$(VENV)/bin/uv pip install -q --compile-bytecode --python $(PY) --no-deps \
+	  $(CORPUS_FILES_ONLY) || $(PY) -m pip install -q --no-deps $(CORPUS_FILES_ONLY)
 	@touch $@
 
 # A technique of your own (a folder with its pyproject.toml, e.g. a copy of examples/plugin)
