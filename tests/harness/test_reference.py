@@ -260,6 +260,22 @@ def test_each_sample_lane_draws_the_numbers_a_loop_over_the_strata_draws(scene_a
     assert (np.floor((np.asarray(fx) - x) * side) == np.arange(samples) % side).all()
 
 
+@pytest.mark.parametrize("divisor", [1, 3, 49, 194, 2047, 16384, (1 << 18) - 1])
+def test_a_lane_divides_as_integers_do(divisor):
+    """The strips' rows come from a float64 reciprocal, not an integer division (LLVM divides
+    lane by lane by an opaque divisor): floor(n / d) for every numerator below 2^18 and the
+    multiples of d and their neighbours up to 2^32, as NumPy's integer division. Catches the
+    half left out of (n + 0.5) / d (tried: 49 x q times the reciprocal of 49 rounds below q)."""
+    mi = ref_mod.mitsuba_module("llvm_ad_rgb")
+    multiples = np.arange(1, (1 << 32) // divisor, max(1, (1 << 32) // divisor // 4096),
+                          dtype=np.uint64) * divisor
+    numerators = np.unique(np.concatenate([
+        np.arange(1 << 18, dtype=np.uint64), multiples, multiples - 1, multiples + 1]))
+    numerators = numerators[numerators < 1 << 32].astype(np.uint32)
+    got = np.asarray(ref_mod._divide(mi, mi.UInt32(numerators), divisor))
+    np.testing.assert_array_equal(got, numerators // np.uint32(divisor))
+
+
 def test_samples_must_be_square(scene_at):
     with pytest.raises(ValueError, match="square"):
         compute_reference(scene_at("box_plane", 32), samples=8)
