@@ -1,7 +1,7 @@
 """The scene file and experiment schema, validated at load. From the bottom up: limits,
 yaml_source, cache_entry (verified cache entries), mesh_formats, mesh_files, types_as_written,
-scene_schema, experiment_schema; beside them shipped (where the shipped scenes and experiments
-lie); each name is ``harness.config.X``.
+object_schema (the shapes), scene_schema, experiment_schema; beside them shipped (where the
+shipped scenes and experiments lie); each name is ``harness.config.X``.
 
 Every problem is a :class:`ConfigError` whose one-line message names the file, the key path
 and (where the YAML has it) the line, e.g.
@@ -22,10 +22,11 @@ from .alpha_files import (MAX_TEXTURE_SIDE, PATTERNS, Alpha, read_alpha_texture,
 from .mesh_files import MeshParts, cache_root, mesh_parts, resolve_mesh_path
 from . import shipped
 from .motion_schema import MAX_ORBIT_DEG, MIN_DOLLY, Motion, ObjectMotion
-from .scene_schema import (LIGHT_TYPES, Array, Box, Camera, Capsule, Cylinder, DirectionalLight,
-                           Family, Lathe, Light, MeshFile, Placed, Plane, PointLight, Scene,
-                           SceneFile, SceneObject, Sphere, SpotLight, TriangleCount,
-                           check_resolution, check_scenes, load_scenes)
+from .object_schema import (Array, Box, Capsule, Cylinder, Lathe, MeshFile, Placed, Plane,
+                            SceneObject, Sphere)
+from .scene_schema import (LIGHT_TYPES, Camera, DirectionalLight, Family, Light, PointLight,
+                           Scene, SceneFile, SpotLight, TriangleCount, check_resolution,
+                           check_scenes, load_scenes)
 from .types_as_written import TypesAsWritten
 from .yaml_source import (MAX_YAML_NODES, ConfigError, check_name, key_error,
                           read_yaml, validation_error)

@@ -28,7 +28,7 @@ from .yaml_source import check_regular_file, key_error
 
 
 class MeshSource(Protocol):
-    """What a scene's ``shape: mesh`` object says about its file (scene_schema.MeshFile has it;
+    """What a scene's ``shape: mesh`` object says about its file (object_schema.MeshFile has it;
     this module stays below the schema, with no import of it)."""
 
     path: str  # relative to the scene file (or inside the package), or absolute
