@@ -34,12 +34,9 @@ def ratios(frame: Frame, name: str) -> np.ndarray:
         technique.update(frame)
         technique.render(frame)
         if name == "vsm":
-            levels = technique.levels
-            return texel_ratios(frame, [(proj @ view, res) for view, proj, res in zip(
-                levels.views, levels.projs, levels.res)], technique.level_map(frame))
+            return texel_ratios(frame, technique.levels.map_grids, technique.level_map(frame))
         if name == "csm":
-            return texel_ratios(frame, [(c.frustum.view_proj, technique.params.res)
-                                        for c in technique.cascades],
+            return texel_ratios(frame, technique.map_grids(),
                                 np.nan_to_num(technique.cascade_map(frame), nan=-1))
         light_map = technique.passes.map
         return texel_ratios(frame, [(light_map.frustum.view_proj, light_map.res)])

@@ -328,8 +328,12 @@ class CascadedShadowMap(Technique):
         used = np.nan_to_num(cascades, nan=-1)
         return {**{f"split_{i}": float(d) for i, d in enumerate(self.splits)},
                 **{f"cascade_texel_{i}": c.texel_world for i, c in enumerate(self.cascades)},
-                **texels_per_pixel(frame, [(c.frustum.view_proj, self.params.res)
-                                           for c in self.cascades], used)}
+                **texels_per_pixel(frame, self.map_grids(), used)}
+
+    def map_grids(self) -> list[tuple[np.ndarray, float]]:
+        """(world -> clip matrix, texels per side) of each cascade: what texels_per_pixel
+        reads."""
+        return [(c.frustum.view_proj, self.params.res) for c in self.cascades]
 
     def cascade_map(self, frame: Frame) -> np.ndarray:
         """Which cascade each covered pixel used (NaN elsewhere): a diagnostic, untimed."""

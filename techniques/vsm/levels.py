@@ -52,6 +52,12 @@ class Levels:
         return len(self.res)
 
     @property
+    def map_grids(self) -> list[tuple[np.ndarray, float]]:
+        """(world -> clip matrix, texels per side) of each level: what texels_per_pixel reads."""
+        return [(proj @ view, float(res)) for view, proj, res in zip(self.views, self.projs,
+                                                                    self.res)]
+
+    @property
     def table_size(self) -> int:
         return int(self.bases[-1] + self.pages[-1] ** 2)
 

@@ -321,11 +321,9 @@ class VirtualShadowMap(Technique):
         return used
 
     def columns(self, frame: Frame) -> dict:
-        c, levels = self.counts, self.levels
-        maps = [(proj @ view, res) for view, proj, res in zip(levels.views, levels.projs,
-                                                              levels.res)]
-        # the level map depends on the levels (in maps), the camera pass and the coarsening
-        return {**texels_per_pixel(frame, maps, lambda: self.level_map(frame),
+        c = self.counts
+        # the level map depends on the levels (in their grids), the camera pass and the coarsening
+        return {**texels_per_pixel(frame, self.levels.map_grids, lambda: self.level_map(frame),
                                    choice_key=f"{c.coarsened} {c.slant_floor}".encode()),
                 "pages_marked": c.marked, "pages_allocated": c.allocated,
                 "pages_rendered": c.rendered, "cache_hits": c.hits,

@@ -389,9 +389,7 @@ def test_a_pixel_reads_between_half_a_texel_and_two(scene_name, gl_context, scen
     frame = Frame(scene_at(scene_name, 128))
     try:
         _, technique = run(frame)
-        levels = technique.levels
-        ratios = texel_ratios(frame, [(proj @ view, res) for view, proj, res in zip(
-            levels.views, levels.projs, levels.res)], technique.level_map(frame))
+        ratios = texel_ratios(frame, technique.levels.map_grids, technique.level_map(frame))
         technique.release()
     finally:
         frame.release()
