@@ -6,22 +6,21 @@ import sys
 import time
 
 from ..config import ConfigError
+from ..config.limits import DEFAULT_TUNE_BUDGET, DEFAULT_TUNE_SEED, MAX_TUNE_BUDGET
 
 
 def add_parser(sub, planning) -> None:
     """The ``tune`` subcommand: ``run``'s options that choose runs (they choose the points to
     tune), its budget and seed."""
-    from ..run.tune import DEFAULT_BUDGET, DEFAULT_SEED, MAX_BUDGET
-
     q = sub.add_parser("tune", help="search each technique's tunable settings against the "
                                     "reference, per scene and point of its quality curve")
     planning(q)
-    q.add_argument("--budget", type=int, default=DEFAULT_BUDGET, metavar="N",
-                   help=f"settings searched per scene, technique and point (1..{MAX_BUDGET}; "
-                        f"default {DEFAULT_BUDGET})")
-    q.add_argument("--seed", type=int, default=DEFAULT_SEED, metavar="S",
-                   help=f"seed of the searches (default {DEFAULT_SEED}): the same seed asks the "
-                        "same settings, so a rerun renders nothing again")
+    q.add_argument("--budget", type=int, default=DEFAULT_TUNE_BUDGET, metavar="N",
+                   help="settings searched per scene, technique and point "
+                        f"(1..{MAX_TUNE_BUDGET}; default {DEFAULT_TUNE_BUDGET})")
+    q.add_argument("--seed", type=int, default=DEFAULT_TUNE_SEED, metavar="S",
+                   help=f"seed of the searches (default {DEFAULT_TUNE_SEED}): the same seed asks "
+                        "the same settings, so a rerun renders nothing again")
     q.add_argument("--out", required=True, help="run directory")
     q.add_argument("--quiet", action="store_true", help="no progress lines")
     q.set_defaults(func=cmd_tune)
@@ -38,8 +37,8 @@ def cmd_tune(args) -> int:
     from ..run import tune as tuning
     from ..run.tune_output import summary_lines, write_tuned
 
-    if not 1 <= args.budget <= tuning.MAX_BUDGET:
-        raise ConfigError(f"--budget: must be in [1, {tuning.MAX_BUDGET}], got {args.budget}")
+    if not 1 <= args.budget <= MAX_TUNE_BUDGET:
+        raise ConfigError(f"--budget: must be in [1, {MAX_TUNE_BUDGET}], got {args.budget}")
     check_out(args.out)
     overrides = run.parse_overrides(args.set or [])
     default_frames = not args.experiment

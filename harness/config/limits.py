@@ -36,3 +36,10 @@ MAX_RUNS = 1_000_000
 # overflows float32
 MIN_FOV = 0.01
 NAME_PATTERN = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")
+# shadowbench tune (harness.run.tune): the settings searched per scene, technique and point by
+# default and at most (--budget), and the searches' seed by default (--seed). Here, below the
+# command line: its parser names them without importing the runs' modules (two seconds of
+# every command's start, --help and list included, before)
+DEFAULT_TUNE_BUDGET = 24
+MAX_TUNE_BUDGET = 1000
+DEFAULT_TUNE_SEED = 0

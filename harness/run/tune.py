@@ -51,9 +51,6 @@ HELD_OUT_DEGREES = 10.0
 WINDOW_SCALES = tuple(10.0 ** (e / 2) for e in range(-4, 5))
 # the parameter the record stores as map_res (harness.run.score): the map size a point is at
 MAP_SIZE = "res"
-DEFAULT_BUDGET = 24
-MAX_BUDGET = 1000
-DEFAULT_SEED = 0
 
 
 @dataclass

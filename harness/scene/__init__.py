@@ -11,9 +11,9 @@ import json
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from .. import config as cfg
 from . import families
@@ -21,6 +21,9 @@ from . import motion as motion_paths
 from . import topology
 from .alpha import QUAD_UV, AlphaMask, pattern_texture
 from ..machine.interrupt import raise_if_interrupted
+
+if TYPE_CHECKING:  # imported where a scene is built: half a second of every command's start
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -240,6 +243,8 @@ _GEOMETRY = ("triangles", "indexed", "face_normals", "face_albedo", "bounds", "e
 
 
 def _transform(obj: cfg.Placed) -> np.ndarray:
+    import trimesh
+
     scale = np.broadcast_to(np.asarray(obj.scale, dtype=float), (3,))
     rx, ry, rz = np.radians(obj.rotate)
     rotation = (
@@ -252,13 +257,16 @@ def _transform(obj: cfg.Placed) -> np.ndarray:
 
 
 def _plane(size) -> trimesh.Trimesh:
+    import trimesh
+
     sx, sy = size[0] / 2, size[1] / 2
     v = [[-sx, -sy, 0], [sx, -sy, 0], [sx, sy, 0], [-sx, sy, 0]]
     return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
 
 
 def _base_mesh(obj) -> trimesh.Trimesh:
-    c = trimesh.creation
+    import trimesh.creation as c
+
     match obj:
         case cfg.Plane():
             return _plane(obj.size)
@@ -314,6 +322,8 @@ FAMILY_ALBEDO = 0.8  # the objects' default
 
 
 def build_parts(scene: cfg.Scene, source: Path | None = None) -> list[MeshPart]:
+    import trimesh
+
     parts = []
     for index, obj in enumerate(scene.objects):
         raise_if_interrupted()  # trimesh catches BaseException, Ctrl-C included

@@ -6,10 +6,17 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pyrender
 
 from .. import config as cfg
 from . import BuiltScene
+
+
+def _pyrender():
+    """pyrender, for its cameras' projection matrices, imported where one is made: it imports
+    trimesh and pyglet, 0.6 s of the start of every command (shadowbench list included)."""
+    import pyrender
+
+    return pyrender
 
 
 def look_at(eye, target, up) -> np.ndarray:
@@ -45,7 +52,7 @@ class CameraMatrices:
 
 
 def camera_matrices(camera: cfg.Camera, width: int, height: int) -> CameraMatrices:
-    proj = pyrender.PerspectiveCamera(
+    proj = _pyrender().PerspectiveCamera(
         yfov=math.radians(camera.yfov), znear=camera.near, zfar=camera.far,
         aspectRatio=width / height,
     ).get_projection_matrix(width, height)
@@ -101,7 +108,7 @@ def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum
         depth = -_to_view(view, corners)[:, 2]
         near, far = depth.min() - half[2] * 0.01 - 1e-3, depth.max() + half[2] * 0.01 + 1e-3
         near = max(near, 1e-4)
-        proj = pyrender.OrthographicCamera(xmag=half[0], ymag=half[1], znear=near,
+        proj = _pyrender().OrthographicCamera(xmag=half[0], ymag=half[1], znear=near,
                                            zfar=far).get_projection_matrix()
         return LightFrustum(view, proj, True, near, far)
     up = any_perpendicular_up(light.direction)
@@ -110,7 +117,7 @@ def fit_light(scene: BuiltScene, res: int, margin: float = 0.01) -> LightFrustum
     far = max(depth.max() * 1.01, 1e-3)
     near = max(depth.min() * 0.99, far * 1e-4)
     yfov = math.radians(light.fov_deg)
-    proj = pyrender.PerspectiveCamera(yfov=yfov, znear=near, zfar=far,
+    proj = _pyrender().PerspectiveCamera(yfov=yfov, znear=near, zfar=far,
                                       aspectRatio=1.0).get_projection_matrix(res, res)
     return LightFrustum(view, proj, False, near, far)
 
@@ -131,7 +138,7 @@ def cube_faces(scene: BuiltScene, res: int, half_tan: float = 1.0) -> list[Light
     far = max(float(np.linalg.norm(box_corners(scene.bounds) - position, axis=1).max()) * 1.01,
               1e-3)
     near = far * CUBE_NEAR_RATIO
-    proj = pyrender.PerspectiveCamera(yfov=2 * math.atan(half_tan), znear=near, zfar=far,
+    proj = _pyrender().PerspectiveCamera(yfov=2 * math.atan(half_tan), znear=near, zfar=far,
                                       aspectRatio=1.0).get_projection_matrix(res, res)
     return [LightFrustum(look_at(position, position + axis, any_perpendicular_up(axis)), proj,
                          False, near, far) for axis in CUBE_AXES]

@@ -118,11 +118,32 @@ def texel_ratios(frame: Frame, maps: Sequence[tuple[np.ndarray, float]],
                          np.array([r for _, r in maps], np.float64), choice)
 
 
+def _receivers_on_their_plane(frame: Frame) -> tuple[np.ndarray, tuple]:
+    """(receivers, their _receiver_plane) of the frame's camera pass and light: the same for
+    every map a run or a batch's runs read there (two thirds of a column's cost where each
+    set of maps computed them again)."""
+    light = frame.scene.light
+    key = (id(frame.arrays), b"".join(
+        np.ascontiguousarray(v, np.float64).tobytes() if v is not None else b"-"
+        for v in (light.direction, light.position)))
+    found = _planes.get(key)
+    if found is not None and found[0]() is frame.arrays:
+        return found[1]
+    mask = receivers(frame)
+    _planes.clear()  # one camera pass at a time: a batch's runs share each frame's
+    # dropped with the pass's arrays: a 1024^2 view's plane is 75 MB
+    _planes[key] = (weakref.ref(frame.arrays, lambda _: _planes.pop(key, None)),
+                    (mask, _receiver_plane(frame, mask)))
+    return _planes[key][1]
+
+
+_planes: dict = {}  # (camera pass, light) -> (the pass's arrays, weakly; receivers and plane)
+
+
 def _texel_ratios(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
                   choice: np.ndarray | None) -> np.ndarray:
-    mask = receivers(frame)
+    mask, (point, along_x, along_y) = _receivers_on_their_plane(frame)
     index = np.zeros(int(mask.sum()), np.int64) if choice is None else choice[mask].astype(np.int64)
-    point, along_x, along_y = _receiver_plane(frame, mask)
     ratio = np.full(len(index), np.nan)
     for k in np.unique(index[index >= 0]):  # one map at a time: each its own matrix
         pick = index == k

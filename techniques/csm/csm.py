@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import pyrender
 from pydantic import Field, create_model
 
 from harness.gl.reduction import CoveredRange
@@ -107,6 +106,8 @@ def fit_cascade(corners: np.ndarray, light_direction, bounds: np.ndarray, res: i
     view = rotation.copy()
     view[:3, 3] = [-middle[0], -middle[1], float(depth.min()) - 2 * pad]
     map_near, map_far = pad, float(depth.max() - depth.min()) + 3 * pad
+    import pyrender  # here: the registry imports this module for shadowbench list too
+
     proj = pyrender.OrthographicCamera(xmag=half[0], ymag=half[1], znear=map_near,
                                        zfar=map_far).get_projection_matrix()
     return Cascade(LightFrustum(view, proj, True, map_near, map_far), near, far,

@@ -49,9 +49,14 @@ class EdgeAdjacency:
         corner = self.vertices[faces]
         self.face_normals = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
         self.face_centroids = corner.mean(axis=1)
-        half_edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        self.edges, self.edge_of_half, self.faces_per_edge = np.unique(
-            half_edges, axis=0, return_inverse=True, return_counts=True)
+        half_edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1).astype(np.int64)
+        # one int64 key per edge, (first, second) in lexicographic order: np.unique over rows
+        # (axis=0) sorts them as records, 10x slower (2.4 of 16 s in test_fair_bias's runs)
+        vertices = max(len(self.vertices), 1)
+        keys, self.edge_of_half, self.faces_per_edge = np.unique(
+            half_edges[:, 0] * vertices + half_edges[:, 1], return_inverse=True,
+            return_counts=True)
+        self.edges = np.column_stack([keys // vertices, keys % vertices])
         self.edge_of_half = self.edge_of_half.ravel()
         self.face_of_half = np.repeat(np.arange(len(faces)), 3)
 

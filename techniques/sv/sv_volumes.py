@@ -24,7 +24,6 @@ import hashlib
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import trimesh
 
 from harness.scene.motion import moved
 from harness.scene import Light, MeshPart
@@ -92,6 +91,8 @@ def clean(part: MeshPart) -> CleanMesh:
     faces = faces[keep]
     closed = convex = False
     if len(faces):
+        import trimesh  # here: the registry imports this module for shadowbench list too
+
         mesh = trimesh.Trimesh(unique, faces, process=False)
         closed = bool(mesh.is_watertight and mesh.is_winding_consistent)
         if closed and mesh.volume < 0:

@@ -71,6 +71,7 @@ def fair_runs(gl_context, scene_at):
         reference = compute_reference(scene, samples=16)
         frame = Frame(scene)
         mask = frame.compared_pixels(reference.covered)
+        band = metrics.edge_band(reference.visibility, mask=mask)
         try:
             for res in MAPS:
                 for technique in ("sm", *FILTERED):
@@ -82,10 +83,9 @@ def fair_runs(gl_context, scene_at):
                     v = run.render(frame).visibility
                     run.release()
                     reset_gl_state()
-                    runs[name, res, technique] = (
-                        metrics.acne_pct(v, reference.visibility, mask=mask),
-                        metrics.leak_pct(v, reference.visibility, mask=mask),
-                        metrics.edge_mae(v, reference.visibility, mask=mask))
+                    runs[name, res, technique] = tuple(
+                        score(v, reference.visibility, mask=mask, band=band)
+                        for score in (metrics.acne_pct, metrics.leak_pct, metrics.edge_mae))
         finally:
             frame.release()
     return runs
