@@ -189,7 +189,8 @@ def convex_vertices(planes: np.ndarray, tolerance: float) -> np.ndarray:
     inside all the half-spaces (coincident planes of a flat box are simply singular triples)."""
     triples = np.array(list(combinations(range(len(planes)), 3)))
     a, d = planes[triples, :3], planes[triples, 3]
-    det = np.linalg.det(a)
+    with np.errstate(divide="ignore", invalid="ignore"):  # the singular triples: det 0
+        det = np.linalg.det(a)
     ok = np.abs(det) > 1e-9
     points = np.linalg.solve(a[ok], -d[ok][..., None])[..., 0]
     inside = np.all(points @ planes[:, :3].T + planes[:, 3] >= -tolerance, axis=1)

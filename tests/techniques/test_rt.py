@@ -12,7 +12,7 @@ import pytest
 from harness import config
 from harness.scene import build_scene
 from harness.technique import Frame
-from helpers import ROOT, cut_out, on_a_boundary, technique_visibility
+from helpers import LARGE_SPOTS, ROOT, cut_out, on_a_boundary, technique_visibility
 
 HARD = ROOT / "experiments" / "hard_cases" / "scenes.yaml"
 SIZE = 64
@@ -34,13 +34,14 @@ SV_WRONG = {
 
 
 def scenes(path: Path) -> list[tuple[Path, str]]:
-    return [(path, name) for name in config.load_scenes(path)]
+    return [(path, name) for name in config.load_scenes(path) if name not in LARGE_SPOTS]
 
 
 ALL = scenes(ROOT / "scenes.yaml") + scenes(HARD)
 # sv declines the alpha-tested scenes (rt cuts them out: test_alpha_casters.py)
 OPAQUE = [(path, name) for path in (ROOT / "scenes.yaml", HARD)
-          for name, scene in config.load_scenes(path).items() if not cut_out(scene)]
+          for name, scene in config.load_scenes(path).items()
+          if not cut_out(scene) and name not in LARGE_SPOTS]
 
 
 @pytest.fixture(scope="module")
