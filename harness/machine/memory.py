@@ -7,6 +7,7 @@ Linux reads ``/proc/self``; elsewhere resident memory reads 0 and the peaks foll
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 import time
@@ -87,11 +88,19 @@ def trim_heap() -> None:
     """Give the pages the C heap holds free back to the system: glibc keeps what was freed in
     its heaps and per-thread arenas, resident (``malloc_trim``, where the C library has it;
     elsewhere nothing)."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.cache
+def _malloc_trim():
+    """The C library's malloc_trim, or None. Found once: ctypes.util.find_library runs
+    ldconfig, 4 ms of each of a sweep's batches before."""
     import ctypes
     import ctypes.util
 
     try:
-        trim = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
     except (OSError, AttributeError):
-        return
-    trim(0)
+        return None

@@ -18,7 +18,7 @@ import pytest
 from harness import config, results
 from harness import run as runner
 from harness.cli import main as shadowbench
-from helpers import ROOT
+from helpers import ROOT, run_cli
 
 SCENE_FILE = ROOT / "scenes.yaml"
 CLI = [sys.executable, "-m", "harness.cli"]
@@ -331,7 +331,7 @@ def _check_complete(out: Path, before: list[dict]):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT], ids=["SIGKILL", "Ctrl-C"])
-def test_a_killed_sweep_finishes_on_rerun_without_duplicates(tmp_path, sig, gl_context):
+def test_a_killed_sweep_finishes_on_rerun_without_duplicates(tmp_path, sig, gl_context, capsys):
     experiment = _write(tmp_path, SWEEP)
     out = tmp_path / "out"
     code = _stop_after_first_row(_start(experiment, out), out, sig)
@@ -344,10 +344,10 @@ def test_a_killed_sweep_finishes_on_rerun_without_duplicates(tmp_path, sig, gl_c
         manifest = json.loads((out / "manifest.json").read_text())
         assert manifest["status"] == "interrupted" and manifest["finished"] is None
 
-    rerun = subprocess.run(CLI + ["run", str(experiment), "--scene-file", str(SCENE_FILE),
-                                  "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True,
-                           text=True, timeout=300)
-    assert rerun.returncode == 0, rerun.stderr
+    # the reruns in this process: what the kill left is on disk, the killed process gone
+    code, err = run_cli(["run", experiment, "--scene-file", SCENE_FILE, "--out", out, "--quiet"],
+                        capsys)
+    assert code == 0, err
     _check_complete(out, before)
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "complete" and manifest["finished"]
@@ -356,11 +356,9 @@ def test_a_killed_sweep_finishes_on_rerun_without_duplicates(tmp_path, sig, gl_c
 
     # a completed experiment run again renders nothing and leaves results.csv as it was
     digest = _digest(out / "results.csv")
-    again = subprocess.run(CLI + ["run", str(experiment), "--scene-file", str(SCENE_FILE),
-                                  "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
-                           timeout=300)
-    assert again.returncode == 0, again.stderr
-    assert "nothing to render" in again.stderr
+    code, err = run_cli(["run", experiment, "--scene-file", SCENE_FILE, "--out", out], capsys)
+    assert code == 0, err
+    assert any("nothing to render" in line for line in err)
     assert _digest(out / "results.csv") == digest
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["invocations"][-1]["runs_rendered"] == 0

@@ -103,7 +103,7 @@ def test_a_full_disk_is_one_line_and_the_manifest_says_failed(tmp_path):
         "resolutions": [[256, 256]], "frames": 1, "warmup": 0, "reference": {"samples": 1}}))
     (tmp_path / "small").mkdir()
     out = tmp_path / "small" / "out"
-    script = (f"mount -t tmpfs -o size=600k none {tmp_path}/small && {PY} -m harness.cli run "
+    script = (f"mount -t tmpfs -o size=150k none {tmp_path}/small && {PY} -m harness.cli run "
               f"{experiment} --scene-file {scene_file} --out {out} --quiet; echo EXIT=$?; "
               f"cat {out}/manifest.json")
     proc = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True,
