@@ -143,7 +143,10 @@ _planes: dict = {}  # (camera pass, light) -> (the pass's arrays, weakly; receiv
 def _texel_ratios(frame: Frame, matrices: np.ndarray, sizes: np.ndarray,
                   choice: np.ndarray | None) -> np.ndarray:
     mask, (point, along_x, along_y) = _receivers_on_their_plane(frame)
-    index = np.zeros(int(mask.sum()), np.int64) if choice is None else choice[mask].astype(np.int64)
+    if choice is None:  # every receiver reads the one map: no picking (copies of the plane)
+        ratio = _ratio((point, along_x, along_y), matrices[0], sizes[0])
+        return ratio[np.isfinite(ratio)]
+    index = choice[mask].astype(np.int64)
     ratio = np.full(len(index), np.nan)
     for k in np.unique(index[index >= 0]):  # one map at a time: each its own matrix
         pick = index == k

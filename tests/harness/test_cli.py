@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from helpers import result_rows
+from helpers import result_rows, run_cli
 
 from harness import cli
 from harness.technique import registry
@@ -19,7 +19,7 @@ REQUIRED = ("scene technique params width height map_res time_ms time_ms_min tim
 METRICS = "mae rmse wrong_pct edge_mae ssim psnr levels time_ms".split()
 
 
-def test_run_end_to_end(small_scene_file, tmp_path, gl_context):
+def test_run_end_to_end(small_scene_file, tmp_path, gl_context, capsys):
     scene_file = small_scene_file()
     out = tmp_path / "run"
     exe = Path(sys.executable).with_name("shadowbench")
@@ -54,10 +54,9 @@ def test_run_end_to_end(small_scene_file, tmp_path, gl_context):
     index = out / "index.html"
     assert index.is_file() and "sphere_plane" in index.read_text()
 
-    again = subprocess.run([str(exe), "run", "--scene-file", str(scene_file),
-                            "--techniques", "sm,pcf", "--set", "pcf.k=4", "--out", str(out),
-                            "--quiet"], capture_output=True, text=True, timeout=600)
-    assert again.returncode == 0
+    code, err = run_cli(["run", "--scene-file", scene_file, "--techniques", "sm,pcf", "--set",
+                         "pcf.k=4", "--out", out, "--quiet"], capsys)  # in this process
+    assert code == 0, err
     assert [r["run_id"] for r in result_rows(out)] == [r["run_id"] for r in rows]  # nothing redone
 
 
