@@ -27,6 +27,7 @@ def test_egl_platform_renders_the_same_visibility(small_scene_file, tmp_path):
         out = tmp_path / platform
         proc = subprocess.run([EXE, "run", "--scene-file", str(scene_file), "--quiet",
                                "--techniques", "sm,pcf,sv", "--platform", platform,
+                               "--frames", "1", "--warmup", "0",  # V, not timing
                                "--out", str(out)], capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr
         runs[platform] = _arrays(out)
