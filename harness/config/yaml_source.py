@@ -13,6 +13,7 @@ import yaml
 from pydantic import ValidationError
 
 from .limits import NAME_PATTERN
+from ..machine.file_stamps import stamp
 
 MAX_YAML_NODES = 1_000_000  # after aliases are expanded: a few alias levels can mean billions
 
@@ -198,12 +199,10 @@ def read_yaml(path: Path):
     a tenth of the technique tests' time went to parsing it again)."""
     try:
         check_regular_file(path)
-        stat_now = os.stat(path)
-        stamp = (str(Path(path).resolve()), stat_now.st_dev, stat_now.st_ino,
-                 stat_now.st_size, stat_now.st_mtime_ns)
-        if stamp in _parsed:
-            _parsed.move_to_end(stamp)
-            data, node = _parsed[stamp]
+        key = (str(Path(path).resolve()), stamp(path))
+        if key in _parsed:
+            _parsed.move_to_end(key)
+            data, node = _parsed[key]
             return copy.deepcopy(data), node
         text = Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
@@ -228,14 +227,14 @@ def read_yaml(path: Path):
         raise ConfigError(f"{path}{line}: not valid YAML: {problem}") from None
     except RecursionError:
         raise ConfigError(f"{path}: not valid YAML: nested too deeply") from None
-    _parsed[stamp] = (copy.deepcopy(data), node)
+    _parsed[key] = (copy.deepcopy(data), node)
     while len(_parsed) > PARSED_FILES:
         _parsed.popitem(last=False)
     return data, node
 
 
 PARSED_FILES = 16  # the files read_yaml keeps parsed: a scene file, experiments, their includes
-_parsed: OrderedDict = OrderedDict()  # read_yaml's stamp of a file -> (its data, its root node)
+_parsed: OrderedDict = OrderedDict()  # (a file, its stamp) -> (its data, its root node)
 
 
 def _check_nodes(path: Path, root) -> None:

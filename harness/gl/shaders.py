@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 from OpenGL import GL
 
+from ..machine.file_stamps import stamp, stamps
+
 GLSL_VERSION = "#version 430 core"
 HARNESS_GLSL = Path(__file__).parent / "glsl"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
@@ -36,37 +38,24 @@ def preprocess(path: Path, defines: dict | None = None) -> str:
 
 def _expanded(path: Path) -> str:
     known = _sources.get(path)
-    if known is not None and _stamps(known[0]) == known[1]:
+    if known is not None and stamps(known[0]) == known[1]:
         return known[2]
     seen: list[Path] = []
-    stamps: list[tuple] = []
+    read: list[tuple] = []
 
     def expand(p: Path) -> str:
         if p in seen:
             return ""
         seen.append(p)
-        stamps.append(_stamp(p))  # before reading: a file changed after is read again next time
+        read.append(stamp(p))  # before reading: a file changed after is read again next time
         return _INCLUDE.sub(lambda m: expand(_resolve(m.group(1), p.parent)), p.read_text())
 
     text = expand(path)
-    _sources[path] = (seen, tuple(stamps), text)
+    _sources[path] = (seen, tuple(read), text)
     return text
 
 
-def _stamp(path: Path) -> tuple:
-    s = path.stat()
-    return s.st_mtime_ns, s.st_size, s.st_ino
-
-
-def _stamps(files: list[Path]) -> tuple | None:
-    """_stamp of each file; None when one is gone."""
-    try:
-        return tuple(map(_stamp, files))
-    except OSError:
-        return None
-
-
-# a shader file -> (the files its expansion read, their _stamps, the expansion)
+# a shader file -> (the files its expansion read, their stamps, the expansion)
 _sources: dict[Path, tuple[list[Path], tuple, str]] = {}
 
 

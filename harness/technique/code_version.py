@@ -20,6 +20,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from ..gl.shaders import HARNESS_GLSL
+from ..machine.file_stamps import stamps
 
 GROUP = "shadowbench.techniques"  # the entry-point group techniques register in
 _GLSL_NAME = re.compile(r"[\w./]+\.glsl")
@@ -35,32 +36,19 @@ def code_hash(module_name: str) -> str:
 
     key = (module_name, _source(module_name))
     known = _hashes.get(key)
-    if known is not None and _stamps(path for path, *_ in known[0]) == known[0]:
-        return known[1]
+    if known is not None and stamps(known[0]) == known[1]:
+        return known[2]
     files = code_files(module_name)
-    stamps = _stamps(files)
+    read = stamps(files)
     digest = hashlib.sha256(b"".join(p.name.encode() + strip_declaration(p.read_bytes())
                                      for p in files)).hexdigest()[:12]
-    if stamps is not None:
-        _hashes[key] = (stamps, digest)
+    if read is not None:
+        _hashes[key] = (files, read, digest)
     return digest
 
 
-# (module, its file) -> (each file code_hash read, with its _stamps, taken before reading; the
-# hash)
-_hashes: dict[tuple, tuple[tuple, str]] = {}
-
-
-def _stamps(files) -> tuple | None:
-    """(path, mtime_ns, size, inode) of each file; None when one is gone."""
-    stamps = []
-    for path in files:
-        try:
-            stat = path.stat()
-        except OSError:
-            return None
-        stamps.append((path, stat.st_mtime_ns, stat.st_size, stat.st_ino))
-    return tuple(stamps)
+# (module, its file) -> (the files code_hash read, their stamps taken before hashing, the hash)
+_hashes: dict[tuple, tuple[list[Path], tuple, str]] = {}
 
 
 def code_files(module_name: str) -> list[Path]:
